@@ -1,0 +1,139 @@
+// The lodforge mesh model: struct-of-arrays geometry with explicit attribute seams.
+//
+//   vertex  – a welded position (plus what must move with it: skin, morph position deltas, priority).
+//   wedge   – one render vertex: a vertex plus a tuple of corner attributes (normal, tangent, UVs, colours,
+//             custom attributes, morph normal/tangent deltas). A vertex with several wedges sits on a seam.
+//   face    – a polygon (triangle, quad or n-gon) given as a run of corners; each corner names a wedge.
+//             face_offsets has faces+1 entries; the corners of face f are [face_offsets[f], face_offsets[f+1]).
+//
+// Why skin, morph position deltas and the priority weight are keyed into the vertex: two render vertices at
+// the same rest position but bound to different bones (or moved by a morph target) separate when animated, so
+// they are not the same point of the surface and must not be welded. Everything else is a wedge attribute.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <initializer_list>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lodforge/core/vec.hpp"
+
+namespace lodforge {
+
+inline constexpr std::uint32_t kInvalidIndex = 0xffffffffu;
+inline constexpr int kMaxInfluences = 8;
+
+// How an attribute was stored in its source file, so writers can store it the same way (lossless round trip).
+// component_type uses the glTF codes: 5120 int8, 5121 uint8, 5122 int16, 5123 uint16, 5125 uint32, 5126 float.
+struct AttributeFormat {
+  int component_type = 5126;
+  bool normalized = false;
+  friend bool operator==(const AttributeFormat&, const AttributeFormat&) = default;
+};
+
+// A per-wedge attribute lodforge has no special meaning for (glTF `_FOO`, extra TEXCOORD sets beyond the
+// modelled ones are *not* here: every TEXCOORD_n is a UV set). Carried through unchanged.
+struct CustomAttribute {
+  std::string name;      // glTF semantic, e.g. "_BATCHID"
+  int components = 1;    // 1..4 (SCALAR..VEC4) or 16 (MAT4)
+  AttributeFormat format;
+  std::vector<float> values;  // wedge_count() * components
+  friend bool operator==(const CustomAttribute&, const CustomAttribute&) = default;
+};
+
+struct MorphTarget {
+  std::string name;
+  std::vector<Vec3f> position_deltas;  // per wedge, or empty (identical for all wedges of a vertex)
+  std::vector<Vec3f> normal_deltas;    // per wedge, or empty
+  std::vector<Vec3f> tangent_deltas;   // per wedge, or empty
+  friend bool operator==(const MorphTarget&, const MorphTarget&) = default;
+};
+
+// Up to kMaxInfluences joint influences of one vertex. Unused slots have weight 0.
+struct SkinInfluences {
+  std::array<std::uint16_t, kMaxInfluences> joints{};
+  std::array<float, kMaxInfluences> weights{};
+  friend bool operator==(const SkinInfluences&, const SkinInfluences&) = default;
+};
+
+// A face group with one material (a glTF primitive, an OBJ `usemtl` run, ...).
+struct MaterialSlot {
+  std::string name;         // OBJ material name or glTF material name
+  int gltf_material = -1;   // index into the glTF document's materials, -1 if none
+  int source_primitive = -1;  // glTF primitive index inside its mesh, -1 for other formats
+  // Which wedge streams this slot's faces really carry (glTF primitives of one mesh may differ).
+  bool has_normals = true;
+  bool has_tangents = true;
+  int uv_sets = -1;         // -1 = all of the mesh's UV sets
+  int color_sets = -1;      // -1 = all of the mesh's colour sets
+  bool has_custom = true;
+  bool has_morphs = true;
+  friend bool operator==(const MaterialSlot&, const MaterialSlot&) = default;
+};
+
+struct Mesh {
+  // --- vertices (welded) ---
+  std::vector<Vec3f> positions;
+  std::vector<SkinInfluences> skin;  // per vertex, or empty
+  std::vector<float> priority;       // per vertex painted LOD priority (glTF _LOD_PRIORITY), or empty
+
+  // --- wedges (render vertices) ---
+  std::vector<std::uint32_t> wedge_vertex;      // vertex of each wedge
+  std::vector<Vec3f> normals;                   // per wedge, or empty
+  std::vector<Vec4f> tangents;                  // per wedge (xyz, w = handedness), or empty
+  std::vector<std::vector<Vec2f>> uvs;          // uvs[set][wedge]
+  std::vector<std::vector<Vec4f>> colors;       // colors[set][wedge], RGBA (alpha 1 when stored as RGB)
+  std::vector<int> color_components;            // 3 or 4 per colour set
+  std::vector<CustomAttribute> custom;
+  std::vector<MorphTarget> morph_targets;
+  std::vector<double> morph_default_weights;
+
+  // --- faces ---
+  std::vector<std::uint32_t> face_offsets{0};  // faces + 1 entries
+  std::vector<std::uint32_t> corner_wedge;     // wedge of each corner
+  std::vector<std::uint32_t> face_material;    // per face index into materials
+  std::vector<std::uint32_t> face_group;       // per face index into groups (OBJ g/o), or empty
+  std::vector<MaterialSlot> materials;
+  std::vector<std::string> groups;
+
+  // Source formats of attribute streams by glTF semantic ("NORMAL", "TEXCOORD_1", "COLOR_0", "JOINTS_0", ...).
+  std::map<std::string, AttributeFormat> formats;
+  std::string name;
+
+  // --- sizes and accessors ---
+  std::size_t vertex_count() const { return positions.size(); }
+  std::size_t wedge_count() const { return wedge_vertex.size(); }
+  std::size_t face_count() const { return face_offsets.empty() ? 0 : face_offsets.size() - 1; }
+  std::size_t corner_count() const { return corner_wedge.size(); }
+  std::uint32_t face_size(std::size_t f) const { return face_offsets[f + 1] - face_offsets[f]; }
+  std::uint32_t corner_vertex(std::size_t c) const { return wedge_vertex[corner_wedge[c]]; }
+  // Triangles after fan-triangulating every polygon.
+  std::size_t triangle_count() const;
+
+  // Append a face of `wedges.size()` corners; returns the new face index.
+  std::uint32_t add_face(std::initializer_list<std::uint32_t> wedges, std::uint32_t material = 0);
+  std::uint32_t add_face(const std::uint32_t* wedges, std::size_t n, std::uint32_t material = 0);
+  // Append a vertex with one wedge (no attributes set yet); returns the wedge index.
+  std::uint32_t add_vertex_with_wedge(const Vec3f& p);
+
+  friend bool operator==(const Mesh&, const Mesh&) = default;
+};
+
+struct FaceKindCounts {
+  std::size_t triangles = 0, quads = 0, polygons = 0;  // polygons = more than 4 corners
+};
+FaceKindCounts count_face_kinds(const Mesh& mesh);
+
+Bounds3 compute_bounds(const Mesh& mesh);
+
+// Area-weighted face normal direction (not normalised) of polygon f, by Newell's method.
+Vec3d face_normal_newell(const Mesh& mesh, std::size_t f);
+
+// Returns a mesh whose faces are all triangles (polygons fan-triangulated from their first corner); every
+// other array is shared unchanged. `triangle_face` (optional) receives the source face of each triangle.
+Mesh triangulated(const Mesh& mesh, std::vector<std::uint32_t>* triangle_face = nullptr);
+
+}  // namespace lodforge

@@ -1,0 +1,25 @@
+// File helpers: whole-file reads with clear errors, atomic writes (temporary file in the same folder, fsync,
+// rename), and a check that a relative URI stays inside a folder (no path traversal).
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <string_view>
+
+namespace lodforge::io {
+
+// Reads a whole file; throws IoError("<path>: cannot open ..."), also for directories.
+std::string read_file(const std::filesystem::path& path);
+
+// Writes `bytes` to `path` atomically: the data goes to "<path>.tmp-<pid>-<n>" in the same folder and is
+// renamed over `path` only when complete. On failure nothing is left behind and IoError is thrown.
+void write_file_atomic(const std::filesystem::path& path, std::string_view bytes);
+
+// Resolves `uri` (a relative reference, percent-decoded) against `folder`. Throws IoError naming `asset` when
+// the URI is absolute, has a scheme other than data:, or escapes `folder` through "..".
+std::filesystem::path resolve_inside(const std::filesystem::path& asset, const std::filesystem::path& folder,
+                                     std::string_view uri);
+
+std::string percent_decode(std::string_view s);
+
+}  // namespace lodforge::io

@@ -1,0 +1,131 @@
+#include "lodforge/core/topology.hpp"
+
+#include <algorithm>
+#include <numeric>
+
+namespace lodforge {
+namespace {
+
+struct UnionFind {
+  std::vector<std::uint32_t> parent;
+  explicit UnionFind(std::size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
+  std::uint32_t find(std::uint32_t x) {
+    while (parent[x] != x) {
+      parent[x] = parent[parent[x]];
+      x = parent[x];
+    }
+    return x;
+  }
+  void unite(std::uint32_t a, std::uint32_t b) {
+    a = find(a);
+    b = find(b);
+    if (a != b) parent[std::max(a, b)] = std::min(a, b);  // smaller id wins: deterministic roots
+  }
+};
+
+// Corner of face f that follows corner c (cyclically).
+inline std::uint32_t next_corner(const Mesh& m, std::uint32_t f, std::uint32_t c) {
+  return c + 1 == m.face_offsets[f + 1] ? m.face_offsets[f] : c + 1;
+}
+
+}  // namespace
+
+Topology build_topology(const Mesh& mesh) {
+  Topology t;
+  const std::size_t nc = mesh.corner_count();
+  // (min vertex, max vertex) packed into 64 bits, with the corner: sort groups the sides of each edge.
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> sides;
+  sides.reserve(nc);
+  t.corner_edge.assign(nc, kInvalidIndex);
+  for (std::uint32_t f = 0; f < mesh.face_count(); ++f) {
+    for (std::uint32_t c = mesh.face_offsets[f]; c < mesh.face_offsets[f + 1]; ++c) {
+      const std::uint32_t a = mesh.corner_vertex(c), b = mesh.corner_vertex(next_corner(mesh, f, c));
+      if (a == b) continue;
+      const std::uint64_t key = (std::uint64_t{std::min(a, b)} << 32) | std::max(a, b);
+      sides.emplace_back(key, c);
+    }
+  }
+  std::sort(sides.begin(), sides.end());
+  t.edge_corner.reserve(sides.size());
+  t.edge_corner_offsets.reserve(sides.size() / 2 + 2);
+  for (std::size_t i = 0; i < sides.size();) {
+    const std::uint64_t key = sides[i].first;
+    const auto e = static_cast<std::uint32_t>(t.edges.size());
+    t.edges.push_back({static_cast<std::uint32_t>(key >> 32), static_cast<std::uint32_t>(key & 0xffffffffu)});
+    t.edge_corner_offsets.push_back(static_cast<std::uint32_t>(t.edge_corner.size()));
+    for (; i < sides.size() && sides[i].first == key; ++i) {
+      t.edge_corner.push_back(sides[i].second);
+      t.corner_edge[sides[i].second] = e;
+    }
+  }
+  t.edge_corner_offsets.push_back(static_cast<std::uint32_t>(t.edge_corner.size()));
+  return t;
+}
+
+TopologySummary summarize_topology(const Mesh& mesh, const Topology& topo) {
+  TopologySummary s;
+  const std::size_t nv = mesh.vertex_count(), nc = mesh.corner_count();
+  std::vector<std::uint32_t> corner_face(nc);
+  for (std::uint32_t f = 0; f < mesh.face_count(); ++f) {
+    for (std::uint32_t c = mesh.face_offsets[f]; c < mesh.face_offsets[f + 1]; ++c) corner_face[c] = f;
+    if (mesh.face_size(f) >= 3) ++s.faces;
+  }
+  std::vector<char> referenced(nv, 0);
+  for (std::size_t c = 0; c < nc; ++c) referenced[mesh.corner_vertex(c)] = 1;
+  s.referenced_vertices = static_cast<std::size_t>(std::count(referenced.begin(), referenced.end(), 1));
+  s.edges = topo.edge_count();
+
+  UnionFind fans(nc);           // corners around a vertex joined across two-face edges
+  UnionFind boundary(nv);       // vertices joined along boundary edges
+  UnionFind components(nv);     // vertices joined by faces
+  std::vector<char> on_boundary(nv, 0);
+  for (std::size_t e = 0; e < topo.edge_count(); ++e) {
+    const std::uint32_t val = topo.edge_valence(e);
+    const std::uint32_t* cs = &topo.edge_corner[topo.edge_corner_offsets[e]];
+    if (val == 1) {
+      ++s.boundary_edges;
+      boundary.unite(topo.edges[e][0], topo.edges[e][1]);
+      on_boundary[topo.edges[e][0]] = on_boundary[topo.edges[e][1]] = 1;
+    } else if (val > 2) {
+      ++s.non_manifold_edges;
+    } else {
+      const std::uint32_t c0 = cs[0], c1 = cs[1];
+      const std::uint32_t f0 = corner_face[c0], f1 = corner_face[c1];
+      const std::uint32_t n0 = next_corner(mesh, f0, c0), n1 = next_corner(mesh, f1, c1);
+      const bool same_direction = mesh.corner_vertex(c0) == mesh.corner_vertex(c1);
+      if (same_direction) {
+        ++s.inconsistent_edges;
+        fans.unite(c0, c1);
+        fans.unite(n0, n1);
+      } else {
+        fans.unite(c0, n1);
+        fans.unite(n0, c1);
+      }
+    }
+  }
+  // A vertex is manifold when all its corners form one fan.
+  std::vector<std::uint32_t> fan_root(nv, kInvalidIndex);
+  std::vector<char> non_manifold(nv, 0);
+  for (std::uint32_t c = 0; c < nc; ++c) {
+    const std::uint32_t v = mesh.corner_vertex(c);
+    const std::uint32_t r = fans.find(c);
+    if (fan_root[v] == kInvalidIndex) fan_root[v] = r;
+    else if (fan_root[v] != r) non_manifold[v] = 1;
+  }
+  s.non_manifold_vertices = static_cast<std::size_t>(std::count(non_manifold.begin(), non_manifold.end(), 1));
+
+  for (std::uint32_t f = 0; f < mesh.face_count(); ++f) {
+    for (std::uint32_t c = mesh.face_offsets[f] + 1; c < mesh.face_offsets[f + 1]; ++c) {
+      components.unite(mesh.corner_vertex(mesh.face_offsets[f]), mesh.corner_vertex(c));
+    }
+  }
+  for (std::uint32_t v = 0; v < nv; ++v) {
+    if (referenced[v] && components.find(v) == v) ++s.components;
+    if (on_boundary[v] && boundary.find(v) == v) ++s.boundary_loops;
+  }
+  s.euler_characteristic = static_cast<long long>(s.referenced_vertices) - static_cast<long long>(s.edges) +
+                           static_cast<long long>(s.faces);
+  return s;
+}
+
+}  // namespace lodforge

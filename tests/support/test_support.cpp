@@ -1,0 +1,102 @@
+#include "test_support.hpp"
+
+#include <cmath>
+#include <numbers>
+#include <system_error>
+
+namespace lodforge::testing {
+
+std::filesystem::path corpus_path(const std::string& relative) {
+  std::filesystem::path p = std::filesystem::path(LODFORGE_CORPUS_DIR) / relative;
+  std::error_code ec;
+  return std::filesystem::exists(p, ec) ? p : std::filesystem::path{};
+}
+
+std::filesystem::path temp_dir(const std::string& name) {
+  std::filesystem::path p = std::filesystem::path(LODFORGE_BINARY_DIR) / "test-tmp" / name;
+  std::filesystem::remove_all(p);
+  std::filesystem::create_directories(p);
+  return p;
+}
+
+namespace {
+Mesh with_default_material(Mesh m) {
+  if (m.materials.empty()) m.materials.push_back(MaterialSlot{.name = "default"});
+  return m;
+}
+}  // namespace
+
+Mesh make_tetrahedron() {
+  Mesh m;
+  m.add_vertex_with_wedge({{0, 0, 0}});
+  m.add_vertex_with_wedge({{1, 0, 0}});
+  m.add_vertex_with_wedge({{0, 1, 0}});
+  m.add_vertex_with_wedge({{0, 0, 1}});
+  m.add_face({0, 2, 1});
+  m.add_face({0, 1, 3});
+  m.add_face({0, 3, 2});
+  m.add_face({1, 2, 3});
+  return with_default_material(std::move(m));
+}
+
+Mesh make_cube_quads() {
+  Mesh m;
+  for (int i = 0; i < 8; ++i) {
+    m.add_vertex_with_wedge({{float(i & 1), float((i >> 1) & 1), float((i >> 2) & 1)}});
+  }
+  // Outward orientation (counter-clockwise seen from outside).
+  m.add_face({0, 2, 3, 1});  // z = 0
+  m.add_face({4, 5, 7, 6});  // z = 1
+  m.add_face({0, 1, 5, 4});  // y = 0
+  m.add_face({2, 6, 7, 3});  // y = 1
+  m.add_face({0, 4, 6, 2});  // x = 0
+  m.add_face({1, 3, 7, 5});  // x = 1
+  return with_default_material(std::move(m));
+}
+
+Mesh make_grid(int nx, int ny, bool quads) {
+  Mesh m;
+  for (int y = 0; y <= ny; ++y) {
+    for (int x = 0; x <= nx; ++x) m.add_vertex_with_wedge({{float(x), float(y), 0.0f}});
+  }
+  auto id = [&](int x, int y) { return static_cast<std::uint32_t>(y * (nx + 1) + x); };
+  for (int y = 0; y < ny; ++y) {
+    for (int x = 0; x < nx; ++x) {
+      if (quads) {
+        m.add_face({id(x, y), id(x + 1, y), id(x + 1, y + 1), id(x, y + 1)});
+      } else {
+        m.add_face({id(x, y), id(x + 1, y), id(x + 1, y + 1)});
+        m.add_face({id(x, y), id(x + 1, y + 1), id(x, y + 1)});
+      }
+    }
+  }
+  return with_default_material(std::move(m));
+}
+
+Mesh make_uv_sphere(int rings, int segments, float radius) {
+  Mesh m;
+  const double pi = std::numbers::pi;
+  m.add_vertex_with_wedge({{0, 0, radius}});  // north pole
+  for (int r = 1; r < rings; ++r) {
+    const double theta = pi * r / rings;
+    for (int s = 0; s < segments; ++s) {
+      const double phi = 2 * pi * s / segments;
+      m.add_vertex_with_wedge({{static_cast<float>(radius * std::sin(theta) * std::cos(phi)),
+                                static_cast<float>(radius * std::sin(theta) * std::sin(phi)),
+                                static_cast<float>(radius * std::cos(theta))}});
+    }
+  }
+  const auto south = m.add_vertex_with_wedge({{0, 0, -radius}});
+  auto ring = [&](int r, int s) { return static_cast<std::uint32_t>(1 + (r - 1) * segments + (s % segments)); };
+  for (int s = 0; s < segments; ++s) m.add_face({0, ring(1, s), ring(1, s + 1)});
+  for (int r = 1; r + 1 < rings; ++r) {
+    for (int s = 0; s < segments; ++s) {
+      m.add_face({ring(r, s), ring(r + 1, s), ring(r + 1, s + 1)});
+      m.add_face({ring(r, s), ring(r + 1, s + 1), ring(r, s + 1)});
+    }
+  }
+  for (int s = 0; s < segments; ++s) m.add_face({ring(rings - 1, s), south, ring(rings - 1, s + 1)});
+  return with_default_material(std::move(m));
+}
+
+}  // namespace lodforge::testing
