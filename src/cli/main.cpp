@@ -1,1 +1,39 @@
-int main() { return 0; }
+// The `lodforge` command. Subcommands: info, convert, simplify, eval, demo.
+//
+// Exit codes (documented in --help and README):
+//   0  success
+//   1  some inputs failed while others succeeded (batch commands)
+//   2  usage error, or bad input (a file that cannot be read or is invalid); nothing is written
+//   3  internal error
+#include <CLI/CLI.hpp>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "commands.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "lodforge - regenerates level-of-detail chains of game assets.\n"
+      "Exit codes: 0 success, 1 some inputs failed, 2 usage error or bad input (nothing written), 3 internal error."};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", std::string("lodforge ") + lodforge::cli::version());
+
+  lodforge::cli::register_info(app);
+  lodforge::cli::register_convert(app);
+  lodforge::cli::register_simplify(app);
+  lodforge::cli::register_eval(app);
+  lodforge::cli::register_demo(app);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int rc = app.exit(e);
+    return rc == 0 ? 0 : 2;
+  }
+  return lodforge::cli::exit_code();
+}

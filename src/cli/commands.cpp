@@ -1,0 +1,299 @@
+#include "commands.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "lodforge/core/topology.hpp"
+#include "lodforge/core/validate.hpp"
+#include "lodforge/eval/eval.hpp"
+#include "lodforge/io/asset.hpp"
+#include "lodforge/simplify/simplify.hpp"
+
+namespace lodforge::cli {
+namespace {
+
+int g_exit_code = 0;
+
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+bool is_supported(const std::filesystem::path& p) {
+  try {
+    io::format_from_path(p);
+    return true;
+  } catch (const io::IoError&) {
+    return false;
+  }
+}
+
+// Expands folders into the supported files below them (sorted, so output order is stable).
+std::vector<std::filesystem::path> expand_inputs(const std::vector<std::string>& inputs) {
+  std::vector<std::filesystem::path> out;
+  for (const std::string& in : inputs) {
+    const std::filesystem::path p(in);
+    std::error_code ec;
+    if (std::filesystem::is_directory(p, ec)) {
+      std::vector<std::filesystem::path> found;
+      for (const auto& e : std::filesystem::recursive_directory_iterator(p, ec)) {
+        if (e.is_regular_file() && is_supported(e.path())) found.push_back(e.path());
+      }
+      std::sort(found.begin(), found.end());
+      out.insert(out.end(), found.begin(), found.end());
+    } else {
+      out.push_back(p);
+    }
+  }
+  return out;
+}
+
+std::size_t seam_vertices(const Mesh& m) {
+  std::vector<std::uint32_t> wedges(m.vertex_count(), 0);
+  for (std::uint32_t v : m.wedge_vertex) {
+    if (v < wedges.size()) ++wedges[v];
+  }
+  return static_cast<std::size_t>(std::count_if(wedges.begin(), wedges.end(), [](std::uint32_t n) { return n > 1; }));
+}
+
+std::string attribute_list(const Mesh& m) {
+  std::string s = "position";
+  if (!m.normals.empty()) s += ", normal";
+  if (!m.tangents.empty()) s += ", tangent";
+  if (!m.uvs.empty()) s += ", uv x" + std::to_string(m.uvs.size());
+  if (!m.colors.empty()) s += ", colour x" + std::to_string(m.colors.size());
+  if (!m.skin.empty()) s += ", skin";
+  if (!m.priority.empty()) s += ", priority";
+  if (!m.morph_targets.empty()) s += ", morph targets x" + std::to_string(m.morph_targets.size());
+  for (const CustomAttribute& a : m.custom) s += ", " + a.name;
+  return s;
+}
+
+void print_mesh_info(const Mesh& m, std::size_t index) {
+  const FaceKindCounts k = count_face_kinds(m);
+  const Bounds3 b = compute_bounds(m);
+  std::printf("  mesh %zu%s%s: %zu vertices, %zu wedges, %zu faces (%zu tri, %zu quad, %zu n-gon), %zu triangles, "
+              "%zu material slot(s)\n",
+              index, m.name.empty() ? "" : " ", m.name.c_str(), m.vertex_count(), m.wedge_count(), m.face_count(),
+              k.triangles, k.quads, k.polygons, m.triangle_count(), m.materials.size());
+  std::printf("    attributes: %s\n", attribute_list(m).c_str());
+  if (!b.empty()) {
+    std::printf("    bounds: [%g %g %g] .. [%g %g %g], diagonal %g\n", b.min[0], b.min[1], b.min[2], b.max[0], b.max[1],
+                b.max[2], b.diagonal());
+  }
+  const ValidationReport r = validate(m);
+  if (r.out_of_range_indices == 0) {
+    const TopologySummary s = summarize_topology(m, build_topology(m));
+    std::printf("    topology: %zu edges, %zu boundary edges in %zu loop(s), %zu non-manifold edges, "
+                "%zu non-manifold vertices, %zu component(s), Euler characteristic %lld, %zu seam vertices\n",
+                s.edges, s.boundary_edges, s.boundary_loops, s.non_manifold_edges, s.non_manifold_vertices,
+                s.components, s.euler_characteristic, seam_vertices(m));
+  }
+  if (r.messages.empty()) {
+    std::printf("    validation: clean\n");
+  } else {
+    for (const std::string& msg : r.messages) std::printf("    validation: %s\n", msg.c_str());
+  }
+}
+
+}  // namespace
+
+const char* version() { return "0.1.0"; }
+int exit_code() { return g_exit_code; }
+void set_exit_code(int code) { g_exit_code = std::max(g_exit_code, code); }
+
+void register_info(CLI::App& app) {
+  auto inputs = std::make_shared<std::vector<std::string>>();
+  CLI::App* cmd = app.add_subcommand(
+      "info", "Load, validate and summarise assets (files or folders, searched recursively).");
+  cmd->add_option("inputs", *inputs, "asset files or folders (.gltf .glb .obj .ply .off .stl)")->required();
+  cmd->callback([inputs] {
+    std::size_t ok = 0, failed = 0, triangles = 0;
+    const auto files = expand_inputs(*inputs);
+    if (files.empty()) {
+      std::fprintf(stderr, "error: no supported asset files found\n");
+      set_exit_code(2);
+      return;
+    }
+    for (const auto& path : files) {
+      try {
+        const auto t0 = Clock::now();
+        const io::Asset a = io::load_asset(path);
+        const double load_ms = ms_since(t0);
+        std::printf("%s: %s, %zu mesh(es), loaded in %.1f ms\n", path.string().c_str(), io::format_name(a.format),
+                    a.meshes.size(), load_ms);
+        for (std::size_t i = 0; i < a.meshes.size(); ++i) {
+          print_mesh_info(a.meshes[i], i);
+          triangles += a.meshes[i].triangle_count();
+        }
+        for (const std::string& w : a.warnings) std::printf("  warning: %s\n", w.c_str());
+        ++ok;
+      } catch (const io::IoError& e) {
+        std::fprintf(stderr, "error: %s\n", e.what());
+        ++failed;
+      }
+    }
+    std::printf("summary: %zu asset(s) loaded, %zu failed, %zu triangles in all\n", ok, failed, triangles);
+    if (failed > 0) set_exit_code(2);
+  });
+}
+
+void register_convert(CLI::App& app) {
+  auto in = std::make_shared<std::string>();
+  auto out = std::make_shared<std::string>();
+  CLI::App* cmd = app.add_subcommand("convert", "Convert an asset between formats (format from the extension).");
+  cmd->add_option("input", *in, "input asset")->required();
+  cmd->add_option("output", *out, "output asset (written atomically)")->required();
+  cmd->callback([in, out] {
+    try {
+      const io::Asset a = io::load_asset(*in);
+      io::save_asset(a, *out);
+      for (const std::string& w : a.warnings) std::printf("warning: %s\n", w.c_str());
+      std::printf("%s -> %s\n", in->c_str(), out->c_str());
+    } catch (const io::IoError& e) {
+      std::fprintf(stderr, "error: %s\n", e.what());
+      set_exit_code(2);
+    }
+  });
+}
+
+void register_simplify(CLI::App& app) {
+  struct Args {
+    std::string in, out, engine = "edge_collapse", border = "preserve";
+    SimplifyOptions opt;
+    double max_error_rel = -1;
+    bool evaluate = false;
+  };
+  auto a = std::make_shared<Args>();
+  CLI::App* cmd = app.add_subcommand("simplify", "Simplify every mesh of an asset and write the result.");
+  cmd->add_option("input", a->in, "input asset")->required();
+  cmd->add_option("output", a->out, "output asset (written atomically)")->required();
+  cmd->add_option("--ratio", a->opt.target_ratio, "target fraction of the input triangles, in (0, 1]")
+      ->default_val(0.5);
+  cmd->add_option("--triangles", a->opt.target_triangles, "target triangle count (overrides --ratio)");
+  cmd->add_option("--max-error", a->max_error_rel, "error budget as a fraction of the bounding-box diagonal");
+  cmd->add_option("--engine", a->engine, "edge_collapse | multiple_choice")->default_val("edge_collapse");
+  cmd->add_option("--border", a->border, "free | preserve | lock")->default_val("preserve");
+  cmd->add_option("--threads", a->opt.threads, "worker threads (0 = all cores)")->default_val(0);
+  cmd->add_option("--seed", a->opt.seed, "random seed (multiple_choice)")->default_val(1);
+  cmd->add_flag("--eval", a->evaluate, "measure the result against the input (Hausdorff, mean, RMS)");
+  cmd->callback([a] {
+    SimplifyOptions opt = a->opt;
+    opt.max_error_rel = a->max_error_rel;
+    if (a->engine == "edge_collapse") opt.engine = Engine::edge_collapse;
+    else if (a->engine == "multiple_choice") opt.engine = Engine::multiple_choice;
+    else {
+      std::fprintf(stderr, "error: --engine: unknown engine '%s' (edge_collapse | multiple_choice)\n", a->engine.c_str());
+      set_exit_code(2);
+      return;
+    }
+    if (a->border == "free") opt.border_mode = BorderMode::free;
+    else if (a->border == "preserve") opt.border_mode = BorderMode::preserve;
+    else if (a->border == "lock") opt.border_mode = BorderMode::lock;
+    else {
+      std::fprintf(stderr, "error: --border: unknown mode '%s' (free | preserve | lock)\n", a->border.c_str());
+      set_exit_code(2);
+      return;
+    }
+    if (const auto problems = opt.validate(); !problems.empty()) {
+      for (const std::string& p : problems) std::fprintf(stderr, "error: %s\n", p.c_str());
+      set_exit_code(2);
+      return;
+    }
+    try {
+      io::Asset asset = io::load_asset(a->in);
+      for (std::size_t i = 0; i < asset.meshes.size(); ++i) {
+        const Mesh& src = asset.meshes[i];
+        SimplifyResult r = simplify(src, opt);
+        std::printf("mesh %zu: %zu -> %zu triangles, error bound %.6g (%.4f%% of diagonal), stopped: %s, "
+                    "%.1f ms\n",
+                    i, r.triangles_before, r.triangles_after, r.error_bound_abs, 100.0 * r.error_bound_rel,
+                    stop_reason_name(r.stop_reason),
+                    r.timings.setup_ms + r.timings.initial_costs_ms + r.timings.collapse_ms + r.timings.output_ms);
+        if (a->evaluate) {
+          const EvalResult e = evaluate(src, r.mesh, EvalOptions{.threads = opt.threads});
+          std::printf("  measured: Hausdorff %.4f%%, mean %.5f%%, RMS %.5f%% of diagonal\n", 100 * e.hausdorff_rel(),
+                      100 * e.mean_rel(), 100 * e.rms_rel());
+        }
+        asset.meshes[i] = std::move(r.mesh);
+      }
+      io::save_asset(asset, a->out);
+      std::printf("wrote %s\n", a->out.c_str());
+    } catch (const io::IoError& e) {
+      std::fprintf(stderr, "error: %s\n", e.what());
+      set_exit_code(2);
+    }
+  });
+}
+
+void register_eval(CLI::App& app) {
+  auto a = std::make_shared<std::pair<std::string, std::string>>();
+  auto opt = std::make_shared<EvalOptions>();
+  auto json = std::make_shared<bool>(false);
+  CLI::App* cmd = app.add_subcommand(
+      "eval", "Measure the surface distance between an original and a simplified asset (Metro-style, both ways).");
+  cmd->add_option("original", a->first, "original asset")->required();
+  cmd->add_option("simplified", a->second, "simplified asset")->required();
+  cmd->add_option("--samples", opt->samples, "area samples per direction (0 = automatic)");
+  cmd->add_option("--seed", opt->seed, "sampling seed");
+  cmd->add_option("--threads", opt->threads, "worker threads (0 = all cores)");
+  cmd->add_flag("--json", *json, "print the result as JSON");
+  cmd->callback([a, opt, json] {
+    try {
+      const io::Asset orig = io::load_asset(a->first);
+      const io::Asset simp = io::load_asset(a->second);
+      // Meshes of an asset are measured as one surface.
+      auto merged = [](const io::Asset& asset) {
+        Mesh all;
+        all.materials.push_back({});
+        for (const Mesh& m : asset.meshes) {
+          const auto base = static_cast<std::uint32_t>(all.vertex_count());
+          all.positions.insert(all.positions.end(), m.positions.begin(), m.positions.end());
+          for (std::size_t f = 0; f < m.face_count(); ++f) {
+            std::vector<std::uint32_t> w;
+            for (std::uint32_t c = m.face_offsets[f]; c < m.face_offsets[f + 1]; ++c) {
+              all.wedge_vertex.push_back(base + m.corner_vertex(c));
+              w.push_back(static_cast<std::uint32_t>(all.wedge_vertex.size() - 1));
+            }
+            all.add_face(w.data(), w.size());
+          }
+        }
+        return all;
+      };
+      const EvalResult r = evaluate(merged(orig), merged(simp), *opt);
+      if (*json) {
+        std::printf("{\"hausdorff\": %.9g, \"mean\": %.9g, \"rms\": %.9g, \"diagonal\": %.9g, "
+                    "\"hausdorff_rel\": %.9g, \"mean_rel\": %.9g, \"rms_rel\": %.9g, "
+                    "\"original_to_simplified\": {\"max\": %.9g, \"mean\": %.9g, \"rms\": %.9g}, "
+                    "\"simplified_to_original\": {\"max\": %.9g, \"mean\": %.9g, \"rms\": %.9g}, "
+                    "\"normal_deviation_mean_deg\": %.6g, \"normal_deviation_p95_deg\": %.6g}\n",
+                    r.hausdorff, r.mean, r.rms, r.diagonal, r.hausdorff_rel(), r.mean_rel(), r.rms_rel(),
+                    r.a_to_b.max, r.a_to_b.mean, r.a_to_b.rms, r.b_to_a.max, r.b_to_a.mean, r.b_to_a.rms,
+                    r.normal_deviation_mean_deg, r.normal_deviation_p95_deg);
+      } else {
+        std::printf("bounding-box diagonal of the original: %.6g\n", r.diagonal);
+        std::printf("                      absolute        %% of diagonal\n");
+        std::printf("Hausdorff (symmetric) %-15.6g %.5f\n", r.hausdorff, 100 * r.hausdorff_rel());
+        std::printf("mean                  %-15.6g %.5f\n", r.mean, 100 * r.mean_rel());
+        std::printf("RMS                   %-15.6g %.5f\n", r.rms, 100 * r.rms_rel());
+        std::printf("original -> simplified: max %.6g, mean %.6g, RMS %.6g (%zu samples)\n", r.a_to_b.max,
+                    r.a_to_b.mean, r.a_to_b.rms, r.a_to_b.samples);
+        std::printf("simplified -> original: max %.6g, mean %.6g, RMS %.6g (%zu samples)\n", r.b_to_a.max,
+                    r.b_to_a.mean, r.b_to_a.rms, r.b_to_a.samples);
+        std::printf("normal deviation: mean %.3f deg, p95 %.3f deg\n", r.normal_deviation_mean_deg,
+                    r.normal_deviation_p95_deg);
+      }
+    } catch (const io::IoError& e) {
+      std::fprintf(stderr, "error: %s\n", e.what());
+      set_exit_code(2);
+    }
+  });
+}
+
+}  // namespace lodforge::cli

@@ -1,0 +1,18 @@
+// Subcommand registration for the lodforge CLI; each command records its exit code.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace lodforge::cli {
+
+const char* version();
+int exit_code();
+void set_exit_code(int code);  // keeps the most severe code seen
+
+void register_info(CLI::App& app);
+void register_convert(CLI::App& app);
+void register_simplify(CLI::App& app);
+void register_eval(CLI::App& app);
+void register_demo(CLI::App& app);
+
+}  // namespace lodforge::cli

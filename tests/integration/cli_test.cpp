@@ -1,0 +1,132 @@
+// End-to-end tests of the `lodforge` command: exit codes, messages, and that bad input writes nothing.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "test_support.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Run {
+  int code = -1;
+  std::string output;  // stdout and stderr together
+};
+
+Run run_cli(const std::string& args) {
+  const std::string cmd = std::string(LODFORGE_CLI) + " " + args + " 2>&1";
+  Run r;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return r;
+  std::array<char, 4096> buf{};
+  while (std::fgets(buf.data(), buf.size(), p)) r.output += buf.data();
+  const int status = pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+void write_text(const fs::path& p, const std::string& s) {
+  std::ofstream(p, std::ios::binary) << s;
+}
+
+bool no_temporaries(const fs::path& dir) {
+  for (const auto& e : fs::directory_iterator(dir)) {
+    if (e.path().string().find(".tmp-") != std::string::npos) return false;
+  }
+  return true;
+}
+
+TEST(Cli, HelpListsSubcommandsAndExitCodes) {
+  const Run r = run_cli("--help");
+  EXPECT_EQ(r.code, 0);
+  for (const char* s : {"info", "convert", "simplify", "eval", "demo", "Exit codes"}) {
+    EXPECT_NE(r.output.find(s), std::string::npos) << s;
+  }
+}
+
+TEST(Cli, UnknownSubcommandIsUsageError) { EXPECT_EQ(run_cli("frobnicate").code, 2); }
+
+TEST(Cli, InfoOnMissingFileNamesItAndExitsTwo) {
+  const Run r = run_cli("info /nonexistent/dir/thing.obj");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("/nonexistent/dir/thing.obj: no such file"), std::string::npos) << r.output;
+}
+
+TEST(Cli, ConvertOfBadInputWritesNothing) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_bad_convert");
+  write_text(dir / "broken.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n");
+  const Run r = run_cli("convert " + (dir / "broken.obj").string() + " " + (dir / "out.ply").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("broken.obj"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir / "out.ply"));
+  EXPECT_TRUE(no_temporaries(dir));
+}
+
+TEST(Cli, ConvertEmptyAndWrongMagicGlbExitTwo) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_bad_glb");
+  write_text(dir / "empty.glb", "");
+  write_text(dir / "magic.glb", std::string("glTX\x02\0\0\0\x20\0\0\0", 12) + std::string(20, '\0'));
+  for (const char* name : {"empty.glb", "magic.glb"}) {
+    const Run r = run_cli("convert " + (dir / name).string() + " " + (dir / "out.glb").string());
+    EXPECT_EQ(r.code, 2) << name << ": " << r.output;
+    EXPECT_NE(r.output.find(name), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(dir / "out.glb"));
+  }
+  EXPECT_TRUE(no_temporaries(dir));
+}
+
+TEST(Cli, DemoLibraryLoadsCleanlyWithInfo) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_demo");
+  ASSERT_EQ(run_cli("demo " + dir.string()).code, 0);
+  const Run r = run_cli("info " + dir.string());
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("summary: 5 asset(s) loaded, 0 failed"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("validation: 1"), std::string::npos) << "a sample asset has validation findings:\n"
+                                                                   << r.output;
+}
+
+TEST(Cli, DemoOutputMatchesTheBundledSampleLibrary) {
+  // samples/library is the committed output of `lodforge demo`; they must not drift apart.
+  const fs::path dir = lodforge::testing::temp_dir("cli_demo_match");
+  ASSERT_EQ(run_cli("demo " + dir.string()).code, 0);
+  const fs::path lib = fs::path(LODFORGE_SOURCE_DIR) / "samples/library";
+  std::size_t compared = 0;
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    if (!e.is_regular_file()) continue;
+    const fs::path rel = fs::relative(e.path(), dir);
+    std::ifstream a(e.path(), std::ios::binary), b(lib / rel, std::ios::binary);
+    ASSERT_TRUE(b.good()) << "samples/library lacks " << rel;
+    const std::string sa((std::istreambuf_iterator<char>(a)), {}), sb((std::istreambuf_iterator<char>(b)), {});
+    EXPECT_TRUE(sa == sb) << rel << " differs from the demo output (regenerate with `lodforge demo samples/library`)";
+    ++compared;
+  }
+  EXPECT_GE(compared, 5u);
+}
+
+TEST(Cli, SimplifyAndEvalOnDemoAsset) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_simplify");
+  ASSERT_EQ(run_cli("demo " + dir.string()).code, 0);
+  const fs::path in = dir / "environment/rock.ply", out = dir / "rock_lod1.ply";
+  const Run s = run_cli("simplify " + in.string() + " " + out.string() + " --ratio 0.25");
+  ASSERT_EQ(s.code, 0) << s.output;
+  ASSERT_TRUE(fs::exists(out));
+  const Run e = run_cli("eval " + in.string() + " " + out.string() + " --json");
+  ASSERT_EQ(e.code, 0) << e.output;
+  EXPECT_NE(e.output.find("\"hausdorff_rel\""), std::string::npos);
+}
+
+TEST(Cli, SimplifyRejectsInvalidOptions) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_simplify_bad");
+  ASSERT_EQ(run_cli("demo " + dir.string()).code, 0);
+  const Run r = run_cli("simplify " + (dir / "environment/rock.ply").string() + " " + (dir / "x.ply").string() +
+                        " --ratio 1.5");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_FALSE(fs::exists(dir / "x.ply"));
+}
+
+}  // namespace
