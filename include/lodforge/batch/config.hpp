@@ -1,0 +1,188 @@
+// The batch config: which LOD chain each asset class gets (DESIGN.md part 9; issue 5, "Config").
+//
+//   const BatchConfig config = load_config("configs/default.json");  // throws ConfigError, every problem
+//   if (const AssetClass* cls = match_class(config, "props/chair.obj")) {
+//     for (const LodSpec& lod : cls->lods) simplify(mesh, simplify_options_for(lod, source));
+//   }
+//
+// configs/schema.json documents every key. Parsing is strict the way PDAL's pipeline reader is: unknown keys,
+// wrong types, impossible targets and non-monotone chains are errors naming the JSON path of the bad value
+// ("classes[2].lods[1].ratio: must be < previous ratio 0.25"), and all of them are reported at once, so one
+// edit fixes a whole file. Options resolve in three layers: `defaults` < class `options` < LOD overrides.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <nlohmann/json_fwd.hpp>  // callers that build or read documents include <nlohmann/json.hpp>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "lodforge/batch/glob.hpp"
+#include "lodforge/simplify/simplify.hpp"
+
+namespace lodforge::batch {
+
+inline constexpr int kConfigVersion = 1;
+inline constexpr std::size_t kMaxLods = 8;  // LOD1..LOD8 after the source (LOD0); MSFT_lod chains stay short
+
+// Every problem of a config; what() is "<source>: <problem>" per problem, one per line, where a problem is
+// "<json path>: <what is wrong>".
+class ConfigError : public std::runtime_error {
+ public:
+  ConfigError(std::string source, std::vector<std::string> problems);
+  const std::string& source() const noexcept { return source_; }
+  const std::vector<std::string>& problems() const noexcept { return problems_; }
+
+ private:
+  std::string source_;
+  std::vector<std::string> problems_;
+};
+
+// Multipliers of the attribute error terms against the geometric error; 0 ignores that attribute.
+struct AttributeWeights {
+  double normal = 1.0;
+  double uv = 1.0;
+  double color = 1.0;
+  double skin = 1.0;
+  friend bool operator==(const AttributeWeights&, const AttributeWeights&) = default;
+};
+
+// Options the config already parses and validates but the simplifier does not take yet (later issues add
+// them to SimplifyOptions; moving one there is a one-line change of its table entry in config.cpp).
+struct PendingOptions {
+  AttributeWeights attribute_weights;
+  bool permissive = false;  // allow collapses across attribute seams (fewer triangles, visible seam shifts)
+  // Per-vertex weight scaling collapse costs: "none", a custom attribute ("_LOD_PRIORITY", "_PAINT.y") or a
+  // colour channel ("COLOR_0.r"). The default is used when the asset has it and ignored otherwise.
+  std::string priority_channel = "_LOD_PRIORITY";
+  // Influences below this weight are ignored when comparing the bones two vertices follow.
+  double skin_weight_threshold = 0.1;
+  friend bool operator==(const PendingOptions&, const PendingOptions&) = default;
+};
+
+// Everything a LOD may override. The target fields of `simplify` are not set here (see LodSpec).
+struct LodOptions {
+  SimplifyOptions simplify;
+  PendingOptions pending;
+};
+
+enum class TargetKind {
+  ratio,          // fraction of the *source* triangle count, also when built from the previous LOD
+  triangles,      // absolute triangle count
+  max_error_rel,  // error budget as a fraction of the source's bounding-box diagonal
+  max_error_abs,  // error budget in model units
+  screen_size,    // a max_error_rel derived from a screen projection (ScreenSize)
+};
+const char* target_kind_name(TargetKind kind);  // the config's spelling: "ratio", "max_error.relative", ...
+
+// Projection assumption: the LOD is shown when the object's bounding sphere -- the sphere around its
+// axis-aligned bounding box, radius = half the box diagonal -- covers `pixels` pixels (its projected diameter)
+// on a screen `screen_height_px` tall with vertical field of view `fov_y_deg`. An error of `error_px` pixels
+// is then error_abs = error_px * (2 * radius) / pixels in object space, that is error_px / pixels of the
+// diagonal, independent of the asset's size.
+struct ScreenSize {
+  double pixels = 0;
+  double screen_height_px = 0;
+  double fov_y_deg = 0;
+  double error_px = 0;
+
+  double max_error_rel() const { return error_px / pixels; }
+  // Fraction of the screen height the object covers when this LOD switches in (glTF MSFT_screencoverage).
+  double screen_coverage() const { return pixels / screen_height_px; }
+  // Camera distance at which a bounding sphere of `radius` covers `pixels` (small-angle: diameter on screen
+  // = 2 * radius / (distance * 2 * tan(fov_y / 2)) * screen_height_px).
+  double switch_distance(double radius) const;
+  friend bool operator==(const ScreenSize&, const ScreenSize&) = default;
+};
+
+struct LodTarget {
+  TargetKind kind = TargetKind::ratio;
+  double ratio = 0;           // kind ratio: in (0, 1]
+  std::size_t triangles = 0;  // kind triangles: > 0
+  double max_error = 0;       // max_error_rel / max_error_abs, and screen_size (= screen.max_error_rel())
+  ScreenSize screen;          // kind screen_size
+  friend bool operator==(const LodTarget&, const LodTarget&) = default;
+};
+
+enum class LodFrom {
+  previous,  // simplify the previous LOD (the source for LOD1): cheaper, error accumulates along the chain
+  source,    // simplify the source: each LOD's error is measured against one reference
+};
+
+struct LodSpec {
+  LodTarget target;
+  LodFrom from = LodFrom::previous;
+  // Resolved defaults < class options < this LOD's overrides. The target fields of options.simplify are those
+  // of a build from the source (ratio -> target_ratio, error -> max_error_*); simplify_options_for() gives
+  // the exact per-asset values, also for chains.
+  LodOptions options;
+};
+
+struct AssetClass {
+  std::string name;
+  std::string description;
+  std::vector<Glob> match;    // on the '/'-separated path relative to the library root, any one matches
+  LodOptions options;         // defaults < class options: what every LOD of the class starts from
+  std::vector<LodSpec> lods;  // LOD1..LODn; LOD0 is the source
+
+  bool matches(std::string_view relative_path) const;
+};
+
+enum class GltfLods {
+  msft_lod,  // one glTF per asset, the LODs as MSFT_lod alternatives of each node
+  files,     // one file per LOD: name_LOD1.glb, ...
+  both,
+};
+
+struct OutputOptions {
+  GltfLods gltf_lods = GltfLods::msft_lod;
+  bool post_process = true;        // meshoptimizer vertex-cache and vertex-fetch reordering of each LOD
+  bool write_source_lod0 = false;  // also write the (post-processed) source as name_LOD0
+  friend bool operator==(const OutputOptions&, const OutputOptions&) = default;
+};
+
+struct BatchConfig {
+  int version = kConfigVersion;
+  std::string description;
+  LodOptions defaults;  // built-in defaults < `defaults`
+  OutputOptions output;
+  std::vector<AssetClass> classes;  // in file order: the first class whose globs match wins
+  std::string default_class;        // class of assets no glob matches; empty = such assets are skipped
+};
+
+// `source` names the document in messages (a file name). Throws ConfigError.
+BatchConfig parse_config(const nlohmann::json& document, std::string_view source = "<config>");
+
+// Reads and parses a file. Also reports JSON syntax errors (line, column) and duplicate keys, which a parsed
+// nlohmann::json can no longer show. Throws ConfigError with `path` as its source.
+BatchConfig load_config(const std::filesystem::path& path);
+
+// The config with every default applied, in the config's own format (parse_config accepts it back and gives
+// the same config): written into the report, so a run records exactly what it did.
+nlohmann::json effective_config_json(const BatchConfig& config);
+// One class with its options resolved, plus the output options: what an asset's cache key depends on.
+nlohmann::json effective_class_json(const BatchConfig& config, const AssetClass& cls);
+
+// The first class whose globs match, else the `default_class`, else nullptr (see unmatched_reason).
+const AssetClass* match_class(const BatchConfig& config, std::string_view relative_path);
+// Why match_class returned nullptr for this path, for the report's "skipped" record.
+std::string unmatched_reason(const BatchConfig& config, std::string_view relative_path);
+const AssetClass* find_class(const BatchConfig& config, std::string_view name);
+
+// What the asset being simplified is: its source triangle count and bounding-box diagonal, and, when the LOD
+// builds from the previous one, the error that LOD already has against the source.
+struct LodInput {
+  std::size_t source_triangles = 0;
+  double source_diagonal = 0;
+  double accumulated_error_abs = 0;  // achieved error bound of the previous LOD; 0 when building from the source
+};
+
+// The SimplifyOptions for one LOD of one asset. A ratio becomes a triangle count of the source (so a chain's
+// ratios stay ratios of the source); an error target becomes an absolute budget minus the error already
+// accumulated (bounds add along a chain), never below 0, with the triangle target at 1 so error decides.
+SimplifyOptions simplify_options_for(const LodSpec& lod, const LodInput& input);
+
+}  // namespace lodforge::batch
