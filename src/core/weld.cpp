@@ -1,88 +1,95 @@
 #include "lodforge/core/weld.hpp"
 
+#include <bit>
 #include <cstring>
-#include <unordered_map>
 
 namespace lodforge {
 namespace {
 
-// Hash of a byte string (FNV-1a, 64 bit). Only used for bucketing; equality is checked exactly.
-std::uint64_t fnv1a(const void* data, std::size_t n, std::uint64_t h = 1469598103934665603ull) {
-  const auto* p = static_cast<const unsigned char*>(data);
-  for (std::size_t i = 0; i < n; ++i) h = (h ^ p[i]) * 1099511628211ull;
-  return h;
+std::uint32_t canonical_bits(float x) { return std::bit_cast<std::uint32_t>(x == 0.0f ? 0.0f : x); }  // -0 == +0
+
+// The weld key of every vertex as a flat array of 32-bit words (`words` per vertex): position, then skin,
+// priority and the morph position deltas of its first wedge, when the mesh has them.
+std::vector<std::uint32_t> weld_keys(const Mesh& mesh, std::size_t& words) {
+  const std::size_t nv = mesh.vertex_count();
+  std::vector<std::uint32_t> first_wedge(nv, kInvalidIndex);
+  std::size_t morphs = 0;
+  for (const MorphTarget& t : mesh.morph_targets) morphs += t.position_deltas.empty() ? 0 : 1;
+  if (morphs > 0) {
+    for (std::uint32_t w = 0; w < mesh.wedge_count(); ++w) {
+      const std::uint32_t v = mesh.wedge_vertex[w];
+      if (v < nv && first_wedge[v] == kInvalidIndex) first_wedge[v] = w;
+    }
+  }
+  words = 3 + (mesh.skin.empty() ? 0 : 2 * kMaxInfluences) + (mesh.priority.empty() ? 0 : 1) + 3 * morphs;
+  std::vector<std::uint32_t> keys(nv * words);
+  for (std::size_t v = 0; v < nv; ++v) {
+    std::uint32_t* k = &keys[v * words];
+    for (int i = 0; i < 3; ++i) *k++ = canonical_bits(mesh.positions[v][i]);
+    if (!mesh.skin.empty()) {
+      for (std::size_t i = 0; i < kMaxInfluences; ++i) {
+        *k++ = mesh.skin[v].joints[i];
+        *k++ = canonical_bits(mesh.skin[v].weights[i]);
+      }
+    }
+    if (!mesh.priority.empty()) *k++ = canonical_bits(mesh.priority[v]);
+    for (const MorphTarget& t : mesh.morph_targets) {
+      if (t.position_deltas.empty()) continue;
+      const std::uint32_t w = first_wedge[v];
+      for (int i = 0; i < 3; ++i) *k++ = w == kInvalidIndex ? 0u : canonical_bits(t.position_deltas[w][i]);
+    }
+  }
+  return keys;
 }
 
-float canonical(float x) { return x == 0.0f ? 0.0f : x; }  // -0 and +0 weld together
+std::uint64_t hash_words(const std::uint32_t* k, std::size_t n) {
+  std::uint64_t h = 0x9E3779B97F4A7C15ull;
+  for (std::size_t i = 0; i < n; ++i) {
+    h = (h ^ k[i]) * 0xff51afd7ed558ccdull;
+    h ^= h >> 32;
+  }
+  return h;
+}
 
 }  // namespace
 
 std::size_t weld_by_position(Mesh& mesh) {
   const std::size_t nv = mesh.vertex_count();
   if (nv == 0) return 0;
-  // Morph position deltas live on wedges; give each vertex the deltas of its first wedge.
-  std::vector<std::uint32_t> first_wedge(nv, kInvalidIndex);
-  for (std::uint32_t w = 0; w < mesh.wedge_count(); ++w) {
-    const std::uint32_t v = mesh.wedge_vertex[w];
-    if (v < nv && first_wedge[v] == kInvalidIndex) first_wedge[v] = w;
-  }
-  auto key_bytes = [&](std::uint32_t v, std::vector<float>& out) {
-    out.clear();
-    for (int i = 0; i < 3; ++i) out.push_back(canonical(mesh.positions[v][i]));
-    if (!mesh.skin.empty()) {
-      for (int i = 0; i < kMaxInfluences; ++i) {
-        out.push_back(static_cast<float>(mesh.skin[v].joints[static_cast<std::size_t>(i)]));
-        out.push_back(canonical(mesh.skin[v].weights[static_cast<std::size_t>(i)]));
-      }
-    }
-    if (!mesh.priority.empty()) out.push_back(canonical(mesh.priority[v]));
-    for (const MorphTarget& t : mesh.morph_targets) {
-      if (t.position_deltas.empty()) continue;
-      const std::uint32_t w = first_wedge[v];
-      for (int i = 0; i < 3; ++i) out.push_back(w == kInvalidIndex ? 0.0f : canonical(t.position_deltas[w][i]));
-    }
-  };
-
-  std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> buckets;
-  buckets.reserve(nv);
-  std::vector<std::uint32_t> remap(nv);
-  std::vector<float> key, other;
-  std::uint32_t next = 0;
-  std::vector<std::uint32_t> kept;  // old id of each new vertex
+  std::size_t words = 0;
+  const std::vector<std::uint32_t> keys = weld_keys(mesh, words);
+  // Open addressing, load factor <= 1/2; slots hold the old id of the first vertex with that key.
+  std::size_t capacity = 16;
+  while (capacity < 2 * nv) capacity *= 2;
+  std::vector<std::uint32_t> table(capacity, kInvalidIndex);
+  std::vector<std::uint32_t> remap(nv), kept;  // kept: old id of each new vertex, in first-occurrence order
   kept.reserve(nv);
   for (std::uint32_t v = 0; v < nv; ++v) {
-    key_bytes(v, key);
-    auto& bucket = buckets[fnv1a(key.data(), key.size() * sizeof(float))];
-    std::uint32_t found = kInvalidIndex;
-    for (std::uint32_t cand : bucket) {
-      key_bytes(kept[cand], other);
-      if (other == key) {
-        found = cand;
-        break;
-      }
+    const std::uint32_t* k = &keys[v * words];
+    std::size_t slot = hash_words(k, words) & (capacity - 1);
+    while (table[slot] != kInvalidIndex &&
+           std::memcmp(&keys[std::size_t{table[slot]} * words], k, words * sizeof(std::uint32_t)) != 0) {
+      slot = (slot + 1) & (capacity - 1);
     }
-    if (found == kInvalidIndex) {
-      found = next++;
-      bucket.push_back(found);
+    if (table[slot] == kInvalidIndex) {
+      table[slot] = v;
+      remap[v] = static_cast<std::uint32_t>(kept.size());
       kept.push_back(v);
+    } else {
+      remap[v] = remap[table[slot]];
     }
-    remap[v] = found;
   }
+  const std::size_t next = kept.size();
   const std::size_t removed = nv - next;
   if (removed == 0) return 0;
-  std::vector<Vec3f> positions(next);
-  for (std::uint32_t n = 0; n < next; ++n) positions[n] = mesh.positions[kept[n]];
-  mesh.positions = std::move(positions);
-  if (!mesh.skin.empty()) {
-    std::vector<SkinInfluences> skin(next);
-    for (std::uint32_t n = 0; n < next; ++n) skin[n] = mesh.skin[kept[n]];
-    mesh.skin = std::move(skin);
-  }
-  if (!mesh.priority.empty()) {
-    std::vector<float> pr(next);
-    for (std::uint32_t n = 0; n < next; ++n) pr[n] = mesh.priority[kept[n]];
-    mesh.priority = std::move(pr);
-  }
+  auto gather = [&](auto& arr) {
+    if (arr.empty()) return;
+    for (std::size_t n = 0; n < next; ++n) arr[n] = arr[kept[n]];  // kept[n] >= n: in-place is safe
+    arr.resize(next);
+  };
+  gather(mesh.positions);
+  gather(mesh.skin);
+  gather(mesh.priority);
   for (std::uint32_t& v : mesh.wedge_vertex) {
     if (v < nv) v = remap[v];
   }
