@@ -1,0 +1,106 @@
+// A bounding volume hierarchy over triangles with exact closest-point queries in double precision.
+//
+//   TriangleBvh bvh(positions, indices);         // three indices per triangle
+//   BvhHit hit = bvh.closest_point(p);           // hit.triangle, hit.point, hit.barycentric, hit.distance_sq
+//
+// Used by the Metro-style evaluator (eval.hpp) and meant for every "closest point on the other surface" query
+// (attribute and UV deviation, conservative error checks). Queries are const and allocation-free, so any
+// number of threads may query one BVH at once.
+#pragma once
+
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "lodforge/core/mesh.hpp"
+#include "lodforge/core/vec.hpp"
+
+namespace lodforge {
+
+struct TrianglePoint {
+  Vec3d point{};
+  Vec3d barycentric{};  // weights of corners a, b, c: point = wa a + wb b + wc c, weights >= 0, sum 1
+};
+
+// Exact closest point of triangle abc to p (Ericson, Real-Time Collision Detection, 5.1.5). Degenerate
+// triangles (collinear corners, repeated corners) are handled: the answer is the closest point of the segment
+// or point they collapse to, never NaN.
+TrianglePoint closest_point_on_triangle(const Vec3d& p, const Vec3d& a, const Vec3d& b, const Vec3d& c);
+
+struct BvhHit {
+  std::uint32_t triangle = kInvalidIndex;  // triangle number as given to the constructor; kInvalidIndex: none
+  Vec3d point{};
+  Vec3d barycentric{};
+  double distance_sq = INFINITY;
+
+  bool found() const { return triangle != kInvalidIndex; }
+  double distance() const { return std::sqrt(distance_sq); }
+};
+
+// One internal node of a TriangleBvh: the boxes of both children side by side, so that one 64-byte line
+// gives everything needed to decide where to descend. Boxes are floats rounded outward, so they always contain
+// their triangles. Child i is the node child[i] when count[i] == 0, else a leaf holding the triangle slots
+// [child[i], child[i] + count[i]).
+struct alignas(64) BvhNode {
+  float min[2][3], max[2][3];
+  std::uint32_t child[2], count[2];
+};
+
+class TriangleBvh {
+ public:
+  // An empty hierarchy: every query returns no hit.
+  TriangleBvh() = default;
+  // `indices` holds three vertex indices per triangle, each < positions.size(). Triangles with a non-finite
+  // corner are left out of the tree (never hit) but keep their numbers. Built with a binned surface area
+  // heuristic; the tree depends only on the input (deterministic).
+  TriangleBvh(std::span<const Vec3d> positions, std::span<const std::uint32_t> indices);
+
+  std::size_t triangle_count() const { return slot_of_.size(); }  // as given, including left-out ones
+  std::size_t node_count() const { return nodes_.size(); }  // internal nodes
+  bool empty() const { return root_.count == 0 && nodes_.empty(); }  // no triangle with finite corners
+  Bounds3 bounds() const;
+
+  // The closest point on any triangle, exact up to rounding. Among equally close triangles, which one is
+  // returned is unspecified (but the same for the same query).
+  BvhHit closest_point(const Vec3d& p) const;
+  // The same distance, with triangle `hint` (for example the previous answer of a spatially coherent stream of
+  // queries) measured first so that most of the tree is pruned at once. May name a different triangle only
+  // when several are equally close. An out-of-range or left-out hint is ignored.
+  BvhHit closest_point(const Vec3d& p, std::uint32_t hint) const;
+  // The closest point strictly closer than `max_distance`, or no hit. Cheap when nothing is near.
+  BvhHit closest_point_within(const Vec3d& p, double max_distance) const;
+
+  // Corners of triangle t (t < triangle_count()) as given.
+  std::array<Vec3d, 3> triangle(std::uint32_t t) const;
+
+  // The tree (for tests and debugging). The root is a child reference like those inside nodes: node
+  // root().index when root().count == 0 (then node 0), else a single leaf. Slot s is triangle slot_triangle(s).
+  struct Root {
+    float min[3] = {}, max[3] = {};  // rounded outward like node boxes
+    std::uint32_t index = 0, count = 0;
+  };
+  const Root& root() const { return root_; }
+  std::span<const BvhNode> nodes() const { return nodes_; }
+  std::uint32_t slot_triangle(std::uint32_t slot) const { return slot_triangle_[slot]; }
+
+ private:
+  // Ordered depth-first descent (nearer child first, boxes no closer than the best so far skipped), keeping
+  // `best` unless something strictly closer is found.
+  BvhHit search(const Vec3d& p, BvhHit best) const;
+
+  Root root_;
+  std::vector<BvhNode> nodes_;
+  std::vector<std::array<Vec3d, 3>> slot_corners_;  // triangles in leaf order, for locality
+  std::vector<std::uint32_t> slot_triangle_;        // slot -> triangle number
+  std::vector<std::uint32_t> slot_of_;              // triangle number -> slot, kInvalidIndex if left out
+  std::vector<Vec3d> positions_;                    // as given, for triangle()
+  std::vector<std::uint32_t> indices_;
+};
+
+// A BVH over the mesh's faces fan-triangulated from their first corner; triangle numbers match the order of
+// triangulated(mesh).
+TriangleBvh make_triangle_bvh(const Mesh& mesh);
+
+}  // namespace lodforge

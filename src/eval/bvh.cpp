@@ -1,0 +1,387 @@
+// Triangle BVH with exact closest-point queries.
+//
+// Implements:
+//   - Ericson, "Real-Time Collision Detection" (2005), 5.1.5 "Closest point on triangle to point": the
+//     Voronoi regions of the three vertices, three edges and the face, told apart with six dot products.
+//   - Wald, "On fast construction of SAH-based bounding volume hierarchies" (IEEE RT 2007): binned surface
+//     area heuristic over triangle centroids.
+//   - Ordered depth-first traversal with box-distance pruning (nearer child first; a box no closer than the
+//     best triangle so far is skipped), as in Metro's AABB-tree queries (Cignoni, Rocchini & Scopigno 1998).
+#include "lodforge/eval/bvh.hpp"
+
+#include <algorithm>
+#include <cassert>
+#include <limits>
+
+namespace lodforge {
+namespace {
+
+constexpr int kBins = 16;
+// Leaves this small keep the per-query triangle tests few; the SAH may stop earlier (see build_subtree).
+constexpr std::uint32_t kMaxLeafSize = 4;
+// Only pathological input (thousands of coincident triangles) nests this deep; a leaf is made instead, so
+// the query stack below can have a fixed size.
+constexpr int kMaxDepth = 60;
+constexpr int kStackSize = kMaxDepth + 2;
+
+double dist_sq(const Vec3d& a, const Vec3d& b) {
+  const Vec3d d = a - b;
+  return dot(d, d);
+}
+
+bool is_finite(const Vec3d& p) { return std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]); }
+
+// Closest point on segment ab, with its parameter along ab (0 at a). Zero-length segments give a.
+double closest_on_segment(const Vec3d& p, const Vec3d& a, const Vec3d& b, Vec3d& out) {
+  const Vec3d ab = b - a;
+  const double len_sq = dot(ab, ab);
+  double t = len_sq > 0 ? dot(p - a, ab) / len_sq : 0.0;
+  t = std::clamp(t, 0.0, 1.0);
+  out = a + ab * t;
+  return t;
+}
+
+// Degenerate triangle: its points are the union of its three edges.
+TrianglePoint closest_on_edges(const Vec3d& p, const Vec3d& a, const Vec3d& b, const Vec3d& c) {
+  Vec3d q;
+  double t = closest_on_segment(p, a, b, q);
+  TrianglePoint best{q, {{1 - t, t, 0}}};
+  double best_d = dist_sq(p, q);
+  t = closest_on_segment(p, b, c, q);
+  if (const double d = dist_sq(p, q); d < best_d) {
+    best = {q, {{0, 1 - t, t}}};
+    best_d = d;
+  }
+  t = closest_on_segment(p, c, a, q);
+  if (const double d = dist_sq(p, q); d < best_d) best = {q, {{t, 0, 1 - t}}};
+  return best;
+}
+
+struct Box {
+  Vec3d min{{INFINITY, INFINITY, INFINITY}};
+  Vec3d max{{-INFINITY, -INFINITY, -INFINITY}};
+
+  void add(const Vec3d& p) {
+    for (int i = 0; i < 3; ++i) {
+      min[i] = std::min(min[i], p[i]);
+      max[i] = std::max(max[i], p[i]);
+    }
+  }
+  void add(const Box& b) {
+    add(b.min);
+    add(b.max);
+  }
+  // Half the surface area: the SAH only compares areas.
+  double half_area() const {
+    if (!(min[0] <= max[0])) return 0.0;
+    const Vec3d e = max - min;
+    return e[0] * e[1] + e[1] * e[2] + e[2] * e[0];
+  }
+};
+
+struct Ref {
+  Box box;
+  Vec3d centroid;
+  std::uint32_t triangle;
+};
+
+float round_down(double x) {
+  float f = static_cast<float>(x);
+  if (static_cast<double>(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+  return f;
+}
+
+float round_up(double x) {
+  float f = static_cast<float>(x);
+  if (static_cast<double>(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  return f;
+}
+
+// A finished subtree as its parent sees it: a node (count == 0) or a leaf of `count` slots from `index`.
+struct Built {
+  Box box;
+  std::uint32_t index, count;
+};
+
+void store_box(const Box& box, float* min, float* max) {
+  for (int i = 0; i < 3; ++i) {
+    min[i] = round_down(box.min[i]);
+    max[i] = round_up(box.max[i]);
+  }
+}
+
+// Squared distance from p to a box (0 inside).
+double box_dist_sq(const float* min, const float* max, const Vec3d& p) {
+  double d = 0;
+  for (int i = 0; i < 3; ++i) {
+    const double below = static_cast<double>(min[i]) - p[i];
+    const double above = p[i] - static_cast<double>(max[i]);
+    const double t = below > 0 ? below : (above > 0 ? above : 0.0);
+    d += t * t;
+  }
+  return d;
+}
+
+int bin_of(double c, double lo, double scale) {
+  return std::clamp(static_cast<int>((c - lo) * scale), 0, kBins - 1);
+}
+
+// Recursive binned-SAH build over refs[begin, end). Nodes are stored parent first. Leaves take the ref
+// positions as their slots, so after the build refs is in slot order.
+Built build_subtree(std::vector<Ref>& refs, std::vector<BvhNode>& nodes, std::uint32_t begin, std::uint32_t end,
+                    int depth) {
+  Box box, centroids;
+  for (std::uint32_t i = begin; i < end; ++i) {
+    box.add(refs[i].box);
+    centroids.add(refs[i].centroid);
+  }
+  const std::uint32_t n = end - begin;
+  if (n <= kMaxLeafSize || depth >= kMaxDepth) return {box, begin, n};
+
+  // Bin all three axes in one pass over the refs (the build's hot loop).
+  double lo[3], scale[3];
+  bool splittable[3];
+  for (int axis = 0; axis < 3; ++axis) {
+    lo[axis] = centroids.min[axis];
+    const double extent = centroids.max[axis] - lo[axis];
+    splittable[axis] = extent > 0;
+    scale[axis] = splittable[axis] ? kBins / extent : 0.0;
+  }
+  Box bin_box[3][kBins];
+  std::uint32_t bin_count[3][kBins] = {};
+  for (std::uint32_t i = begin; i < end; ++i) {
+    const Ref& r = refs[i];
+    for (int axis = 0; axis < 3; ++axis) {
+      const int b = bin_of(r.centroid[axis], lo[axis], scale[axis]);
+      bin_box[axis][b].add(r.box);
+      ++bin_count[axis][b];
+    }
+  }
+
+  // Cost of a split, up to constants: sum over both sides of (box half-area x triangle count).
+  double best_cost = INFINITY;
+  int best_axis = -1, best_split = 0;
+  for (int axis = 0; axis < 3; ++axis) {
+    if (!splittable[axis]) continue;
+    // Sweep from the right for the right-hand sides, then from the left for the costs.
+    double right_area[kBins];
+    std::uint32_t right_count[kBins];
+    Box acc;
+    std::uint32_t count = 0;
+    for (int b = kBins - 1; b > 0; --b) {
+      acc.add(bin_box[axis][b]);
+      count += bin_count[axis][b];
+      right_area[b] = acc.half_area();
+      right_count[b] = count;
+    }
+    acc = Box{};
+    count = 0;
+    for (int split = 1; split < kBins; ++split) {  // left = bins [0, split)
+      acc.add(bin_box[axis][split - 1]);
+      count += bin_count[axis][split - 1];
+      if (count == 0 || right_count[split] == 0) continue;
+      const double cost = acc.half_area() * count + right_area[split] * right_count[split];
+      if (cost < best_cost) {
+        best_cost = cost;
+        best_axis = axis;
+        best_split = split;
+      }
+    }
+  }
+
+  std::uint32_t mid;
+  if (best_axis < 0) {
+    // All centroids coincide: no spatial split helps, halve by position to keep leaves small.
+    mid = begin + n / 2;
+  } else {
+    // A leaf costs n triangle tests; a split costs one more box test per child plus the expected triangle
+    // tests weighted by the chance (area ratio) of entering each child. Stop when splitting does not pay.
+    const double parent_area = box.half_area();
+    if (n <= 4 * kMaxLeafSize && parent_area > 0 && best_cost / parent_area + 1.0 >= n) return {box, begin, n};
+    const auto it = std::partition(refs.begin() + begin, refs.begin() + end, [&](const Ref& r) {
+      return bin_of(r.centroid[best_axis], lo[best_axis], scale[best_axis]) < best_split;
+    });
+    mid = static_cast<std::uint32_t>(it - refs.begin());
+    assert(mid > begin && mid < end);
+  }
+  const auto node = static_cast<std::uint32_t>(nodes.size());
+  nodes.emplace_back();
+  const Built children[2] = {build_subtree(refs, nodes, begin, mid, depth + 1),
+                             build_subtree(refs, nodes, mid, end, depth + 1)};
+  for (int i = 0; i < 2; ++i) {
+    store_box(children[i].box, nodes[node].min[i], nodes[node].max[i]);
+    nodes[node].child[i] = children[i].index;
+    nodes[node].count[i] = children[i].count;
+  }
+  return {box, node, 0};
+}
+
+}  // namespace
+
+TrianglePoint closest_point_on_triangle(const Vec3d& p, const Vec3d& a, const Vec3d& b, const Vec3d& c) {
+  // Ericson's region tests, in his order and notation. Each early return is one Voronoi region.
+  const Vec3d ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = dot(ab, ap), d2 = dot(ac, ap);
+  if (d1 <= 0 && d2 <= 0) return {a, {{1, 0, 0}}};  // vertex a
+
+  const Vec3d bp = p - b;
+  const double d3 = dot(ab, bp), d4 = dot(ac, bp);
+  if (d3 >= 0 && d4 <= d3) return {b, {{0, 1, 0}}};  // vertex b
+
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {  // edge ab
+    const double v = d1 / (d1 - d3);
+    return {a + ab * v, {{1 - v, v, 0}}};
+  }
+
+  const Vec3d cp = p - c;
+  const double d5 = dot(ab, cp), d6 = dot(ac, cp);
+  if (d6 >= 0 && d5 <= d6) return {c, {{0, 0, 1}}};  // vertex c
+
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {  // edge ac
+    const double w = d2 / (d2 - d6);
+    return {a + ac * w, {{1 - w, 0, w}}};
+  }
+
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {  // edge bc
+    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return {b + (c - b) * w, {{0, 1 - w, w}}};
+  }
+
+  // Face region. va, vb, vc are the (scaled) barycentrics; for a non-degenerate triangle all are positive
+  // here. A (near-)degenerate triangle can reach this point with a zero or negative one through rounding;
+  // its surface is its edges, so measure those instead of dividing by ~0.
+  if (!(va > 0 && vb > 0 && vc > 0)) return closest_on_edges(p, a, b, c);
+  const double denom = va + vb + vc;
+  const double v = vb / denom, w = vc / denom;
+  return {a + ab * v + ac * w, {{1 - v - w, v, w}}};
+}
+
+TriangleBvh::TriangleBvh(std::span<const Vec3d> positions, std::span<const std::uint32_t> indices)
+    : positions_(positions.begin(), positions.end()), indices_(indices.begin(), indices.end()) {
+  assert(indices.size() % 3 == 0);
+  const std::size_t triangles = indices.size() / 3;
+  slot_of_.assign(triangles, kInvalidIndex);
+
+  std::vector<Ref> refs;
+  refs.reserve(triangles);
+  for (std::size_t t = 0; t < triangles; ++t) {
+    const std::array<Vec3d, 3> corners = triangle(static_cast<std::uint32_t>(t));
+    if (!is_finite(corners[0]) || !is_finite(corners[1]) || !is_finite(corners[2])) continue;
+    Ref r;
+    for (const Vec3d& q : corners) r.box.add(q);
+    r.centroid = (corners[0] + corners[1] + corners[2]) * (1.0 / 3.0);
+    r.triangle = static_cast<std::uint32_t>(t);
+    refs.push_back(r);
+  }
+  if (refs.empty()) return;
+
+  nodes_.reserve(refs.size() / 2 + 1);
+  const Built root = build_subtree(refs, nodes_, 0, static_cast<std::uint32_t>(refs.size()), 0);
+  nodes_.shrink_to_fit();
+  store_box(root.box, root_.min, root_.max);
+  root_.index = root.index;
+  root_.count = root.count;
+
+  slot_corners_.reserve(refs.size());
+  slot_triangle_.reserve(refs.size());
+  for (std::size_t s = 0; s < refs.size(); ++s) {
+    slot_corners_.push_back(triangle(refs[s].triangle));
+    slot_triangle_.push_back(refs[s].triangle);
+    slot_of_[refs[s].triangle] = static_cast<std::uint32_t>(s);
+  }
+}
+
+std::array<Vec3d, 3> TriangleBvh::triangle(std::uint32_t t) const {
+  return {positions_[indices_[3 * std::size_t{t}]], positions_[indices_[3 * std::size_t{t} + 1]],
+          positions_[indices_[3 * std::size_t{t} + 2]]};
+}
+
+Bounds3 TriangleBvh::bounds() const {
+  Bounds3 b;
+  if (empty()) return b;
+  b.add({{root_.min[0], root_.min[1], root_.min[2]}});
+  b.add({{root_.max[0], root_.max[1], root_.max[2]}});
+  return b;
+}
+
+BvhHit TriangleBvh::search(const Vec3d& p, BvhHit best) const {
+  if (empty()) return best;
+  struct Entry {
+    std::uint32_t index, count;  // a child reference, as in BvhNode
+    double dist_sq;
+  };
+  Entry stack[kStackSize];
+  int top = 0;
+  stack[top++] = {root_.index, root_.count, box_dist_sq(root_.min, root_.max, p)};
+  std::uint32_t best_slot = kInvalidIndex;
+  while (top > 0) {
+    const Entry e = stack[--top];
+    // Re-checked on pop: the best distance may have shrunk since this entry was pushed.
+    if (!(e.dist_sq < best.distance_sq)) continue;
+    if (e.count > 0) {
+      for (std::uint32_t s = e.index; s < e.index + e.count; ++s) {
+        const std::array<Vec3d, 3>& t = slot_corners_[s];
+        const TrianglePoint tp = closest_point_on_triangle(p, t[0], t[1], t[2]);
+        const double d = dist_sq(p, tp.point);
+        if (d < best.distance_sq) {
+          best.distance_sq = d;
+          best.point = tp.point;
+          best.barycentric = tp.barycentric;
+          best_slot = s;
+        }
+      }
+      continue;
+    }
+    const BvhNode& n = nodes_[e.index];
+    const Entry c0{n.child[0], n.count[0], box_dist_sq(n.min[0], n.max[0], p)};
+    const Entry c1{n.child[1], n.count[1], box_dist_sq(n.min[1], n.max[1], p)};
+    // Push the farther child first so the nearer one is searched first and shrinks the bound.
+    const bool first_nearer = c0.dist_sq <= c1.dist_sq;
+    const Entry& near = first_nearer ? c0 : c1;
+    const Entry& far = first_nearer ? c1 : c0;
+    if (far.dist_sq < best.distance_sq) stack[top++] = far;
+    if (near.dist_sq < best.distance_sq) stack[top++] = near;
+    assert(top <= kStackSize);
+  }
+  if (best_slot != kInvalidIndex) best.triangle = slot_triangle_[best_slot];
+  return best;
+}
+
+BvhHit TriangleBvh::closest_point(const Vec3d& p) const { return search(p, BvhHit{}); }
+
+BvhHit TriangleBvh::closest_point(const Vec3d& p, std::uint32_t hint) const {
+  if (hint >= slot_of_.size() || slot_of_[hint] == kInvalidIndex) return search(p, BvhHit{});
+  const std::array<Vec3d, 3>& t = slot_corners_[slot_of_[hint]];
+  const TrianglePoint tp = closest_point_on_triangle(p, t[0], t[1], t[2]);
+  const double d = dist_sq(p, tp.point);
+  if (!(d < INFINITY)) return search(p, BvhHit{});  // NaN or overflow: no useful bound
+  return search(p, BvhHit{hint, tp.point, tp.barycentric, d});
+}
+
+BvhHit TriangleBvh::closest_point_within(const Vec3d& p, double max_distance) const {
+  BvhHit start;
+  start.distance_sq = max_distance > 0 ? max_distance * max_distance : 0.0;
+  return search(p, start);
+}
+
+TriangleBvh make_triangle_bvh(const Mesh& mesh) {
+  std::vector<Vec3d> positions;
+  positions.reserve(mesh.vertex_count());
+  for (const Vec3f& p : mesh.positions) positions.push_back(to_double(p));
+  std::vector<std::uint32_t> indices;
+  indices.reserve(3 * mesh.triangle_count());
+  for (std::size_t f = 0; f < mesh.face_count(); ++f) {
+    const std::uint32_t begin = mesh.face_offsets[f], k = mesh.face_size(f);
+    for (std::uint32_t i = 1; i + 1 < k; ++i) {
+      indices.push_back(mesh.corner_vertex(begin));
+      indices.push_back(mesh.corner_vertex(begin + i));
+      indices.push_back(mesh.corner_vertex(begin + i + 1));
+    }
+  }
+  return TriangleBvh(positions, indices);
+}
+
+}  // namespace lodforge

@@ -1,0 +1,241 @@
+#include "lodforge/eval/bvh.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "test_support.hpp"
+
+namespace lodforge {
+namespace {
+
+Vec3d v3(double x, double y, double z) { return {{x, y, z}}; }
+
+void expect_vec_near(const Vec3d& got, const Vec3d& want, double tol = 1e-12) {
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(got[i], want[i], tol) << "component " << i;
+}
+
+// The reference triangle of every region test, in the plane z = 0:
+//
+//   y
+//   c          a = (0,0,0)
+//   |`.        b = (2,0,0)
+//   |  `.      c = (0,2,0)
+//   a----b  x
+const Vec3d kA = v3(0, 0, 0), kB = v3(2, 0, 0), kC = v3(0, 2, 0);
+
+struct RegionCase {
+  const char* region;
+  Vec3d query, point, barycentric;
+};
+
+TEST(ClosestPointOnTriangle, EachVoronoiRegionGivesTheHandComputedPoint) {
+  const RegionCase cases[] = {
+      {"vertex a", v3(-1, -1, 3), v3(0, 0, 0), v3(1, 0, 0)},
+      {"vertex b", v3(3, -0.5, -2), v3(2, 0, 0), v3(0, 1, 0)},
+      {"vertex c", v3(-0.5, 4, 1), v3(0, 2, 0), v3(0, 0, 1)},
+      {"edge ab", v3(0.5, -1, 2), v3(0.5, 0, 0), v3(0.75, 0.25, 0)},
+      {"edge ac", v3(-3, 1.5, 0), v3(0, 1.5, 0), v3(0.25, 0, 0.75)},
+      // Off the hypotenuse x + y = 2: (2, 1) projects to (1.5, 0.5).
+      {"edge bc", v3(2, 1, 7), v3(1.5, 0.5, 0), v3(0, 0.75, 0.25)},
+      {"face", v3(0.5, 0.25, -3), v3(0.5, 0.25, 0), v3(0.625, 0.25, 0.125)},
+      {"face, point on it", v3(1, 0.5, 0), v3(1, 0.5, 0), v3(0.25, 0.5, 0.25)},
+  };
+  for (const RegionCase& c : cases) {
+    SCOPED_TRACE(c.region);
+    const TrianglePoint tp = closest_point_on_triangle(c.query, kA, kB, kC);
+    expect_vec_near(tp.point, c.point);
+    expect_vec_near(tp.barycentric, c.barycentric);
+  }
+}
+
+TEST(ClosestPointOnTriangle, BarycentricsReproduceThePoint) {
+  const Vec3d a = v3(0.3, -1, 2), b = v3(2, 0.5, 1), c = v3(-1, 1.5, 0.5);
+  const Vec3d queries[] = {v3(0, 0, 0), v3(5, 5, 5), v3(-3, 2, 1), v3(0.4, 0.4, 1.2), v3(1, -2, 3)};
+  for (const Vec3d& q : queries) {
+    const TrianglePoint tp = closest_point_on_triangle(q, a, b, c);
+    const Vec3d& w = tp.barycentric;
+    EXPECT_NEAR(w[0] + w[1] + w[2], 1.0, 1e-12);
+    for (int k = 0; k < 3; ++k) EXPECT_GE(w[k], -1e-12);
+    expect_vec_near(a * w[0] + b * w[1] + c * w[2], tp.point);
+  }
+}
+
+TEST(ClosestPointOnTriangle, DegenerateTrianglesGiveTheClosestPointOfTheirSegmentOrPoint) {
+  // Collinear corners on the x axis spanning [0, 3], the middle one last.
+  const Vec3d a = v3(0, 0, 0), b = v3(3, 0, 0), c = v3(1, 0, 0);
+  const Vec3d queries[] = {v3(2, 1, 0), v3(1.5, 0, -2), v3(-1, 1, 1), v3(4, 0, 0), v3(0.5, 0, 0)};
+  const Vec3d expected[] = {v3(2, 0, 0), v3(1.5, 0, 0), v3(0, 0, 0), v3(3, 0, 0), v3(0.5, 0, 0)};
+  for (int i = 0; i < 5; ++i) {
+    SCOPED_TRACE(i);
+    const TrianglePoint tp = closest_point_on_triangle(queries[i], a, b, c);
+    expect_vec_near(tp.point, expected[i]);
+    const Vec3d& w = tp.barycentric;
+    EXPECT_NEAR(w[0] + w[1] + w[2], 1.0, 1e-12);
+    expect_vec_near(a * w[0] + b * w[1] + c * w[2], tp.point);
+  }
+  // All corners equal.
+  const Vec3d p = v3(1, 2, 3);
+  const TrianglePoint tp = closest_point_on_triangle(v3(4, 6, 3), p, p, p);
+  expect_vec_near(tp.point, p);
+  EXPECT_NEAR(tp.barycentric[0] + tp.barycentric[1] + tp.barycentric[2], 1.0, 1e-12);
+}
+
+// Counter-based uniform in [lo, hi): portable, unlike std distributions.
+double uniform(std::uint64_t key, double lo, double hi) {
+  std::uint64_t x = key * 0x9E3779B97F4A7C15ull + 0x632BE59BD9B4E019ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  x ^= x >> 31;
+  return lo + (hi - lo) * (static_cast<double>(x >> 11) * 0x1.0p-53);
+}
+
+struct Soup {
+  std::vector<Vec3d> positions;
+  std::vector<std::uint32_t> indices;
+};
+
+// Random triangles of mixed sizes in the unit cube, with a few degenerate ones.
+Soup random_soup(int triangles) {
+  Soup s;
+  std::uint64_t key = 1;
+  for (int t = 0; t < triangles; ++t) {
+    const double size = t % 7 == 0 ? 0.5 : 0.05;
+    const Vec3d c = v3(uniform(key, 0, 1), uniform(key + 1, 0, 1), uniform(key + 2, 0, 1));
+    key += 3;
+    for (int k = 0; k < 3; ++k) {
+      Vec3d p = c + v3(uniform(key, -size, size), uniform(key + 1, -size, size), uniform(key + 2, -size, size));
+      key += 3;
+      if (t % 31 == 0 && k == 2) p = s.positions[s.positions.size() - 1] * 2.0 - s.positions[s.positions.size() - 2];
+      s.positions.push_back(p);
+      s.indices.push_back(static_cast<std::uint32_t>(s.positions.size() - 1));
+    }
+  }
+  return s;
+}
+
+BvhHit brute_force(const Soup& s, const Vec3d& p) {
+  BvhHit best;
+  for (std::uint32_t t = 0; t < s.indices.size() / 3; ++t) {
+    const TrianglePoint tp = closest_point_on_triangle(p, s.positions[s.indices[3 * t]],
+                                                       s.positions[s.indices[3 * t + 1]],
+                                                       s.positions[s.indices[3 * t + 2]]);
+    const Vec3d d = tp.point - p;
+    if (dot(d, d) < best.distance_sq) best = {t, tp.point, tp.barycentric, dot(d, d)};
+  }
+  return best;
+}
+
+TEST(TriangleBvh, ClosestPointEqualsBruteForceOnRandomSoup) {
+  const Soup soup = random_soup(1500);
+  const TriangleBvh bvh(soup.positions, soup.indices);
+  ASSERT_EQ(bvh.triangle_count(), 1500u);
+  std::uint64_t key = 1u << 20;
+  for (int q = 0; q < 600; ++q) {
+    // Near the soup, and far outside it (where pruning works differently).
+    const double r = q % 3 == 0 ? 4.0 : 0.6;
+    const Vec3d p = v3(uniform(key, 0.5 - r, 0.5 + r), uniform(key + 1, 0.5 - r, 0.5 + r),
+                       uniform(key + 2, 0.5 - r, 0.5 + r));
+    key += 3;
+    const BvhHit want = brute_force(soup, p);
+    const BvhHit got = bvh.closest_point(p);
+    ASSERT_TRUE(got.found());
+    EXPECT_NEAR(got.distance_sq, want.distance_sq, 1e-12 * want.distance_sq) << "query " << q;
+    // The reported point really is the closest point of the reported triangle.
+    const std::array<Vec3d, 3> t = bvh.triangle(got.triangle);
+    const TrianglePoint tp = closest_point_on_triangle(p, t[0], t[1], t[2]);
+    expect_vec_near(got.point, tp.point);
+    // A hint (here an arbitrary triangle) changes the work, not the answer.
+    const BvhHit hinted = bvh.closest_point(p, static_cast<std::uint32_t>((q * 37) % 1500));
+    EXPECT_NEAR(hinted.distance_sq, want.distance_sq, 1e-12 * want.distance_sq) << "query " << q;
+  }
+}
+
+TEST(TriangleBvh, EveryBoxContainsItsSubtreeAndEveryTriangleIsInOneLeaf) {
+  const Soup soup = random_soup(800);
+  const TriangleBvh bvh(soup.positions, soup.indices);
+  ASSERT_FALSE(bvh.nodes().empty());
+  struct Box {
+    const float *min, *max;
+  };
+  auto inside = [](const Box& box, const Vec3d& p) {
+    for (int i = 0; i < 3; ++i) {
+      if (p[i] < box.min[i] || p[i] > box.max[i]) return false;
+    }
+    return true;
+  };
+  std::vector<int> seen(800, 0);
+  // Walk the tree checking each child reference against every box above it.
+  std::function<void(std::uint32_t, std::uint32_t, std::vector<Box>&)> walk =
+      [&](std::uint32_t index, std::uint32_t count, std::vector<Box>& above) {
+        if (count > 0) {
+          for (std::uint32_t s = index; s < index + count; ++s) {
+            const std::uint32_t t = bvh.slot_triangle(s);
+            ++seen[t];
+            for (const Vec3d& p : bvh.triangle(t)) {
+              for (const Box& b : above) EXPECT_TRUE(inside(b, p)) << "triangle " << t;
+            }
+          }
+          return;
+        }
+        const BvhNode& n = bvh.nodes()[index];
+        for (int i = 0; i < 2; ++i) {
+          above.push_back({n.min[i], n.max[i]});
+          walk(n.child[i], n.count[i], above);
+          above.pop_back();
+        }
+      };
+  std::vector<Box> above = {{bvh.root().min, bvh.root().max}};
+  walk(bvh.root().index, bvh.root().count, above);
+  for (int t = 0; t < 800; ++t) EXPECT_EQ(seen[t], 1) << "triangle " << t;
+}
+
+TEST(TriangleBvh, EmptyTreeAndNonFiniteTrianglesGiveNoHit) {
+  const TriangleBvh empty;
+  EXPECT_TRUE(empty.empty());
+  EXPECT_FALSE(empty.closest_point(v3(0, 0, 0)).found());
+
+  const std::vector<Vec3d> positions = {v3(0, 0, 0), v3(1, 0, 0), v3(0, 1, 0), v3(NAN, 0, 0), v3(5, 5, 5)};
+  const std::vector<std::uint32_t> indices = {3, 1, 2, 0, 1, 2};  // triangle 0 has a NaN corner
+  const TriangleBvh bvh(positions, indices);
+  EXPECT_EQ(bvh.triangle_count(), 2u);
+  const BvhHit hit = bvh.closest_point(v3(2, 2, 0));
+  ASSERT_TRUE(hit.found());
+  EXPECT_EQ(hit.triangle, 1u);
+  expect_vec_near(hit.point, v3(0.5, 0.5, 0));
+  EXPECT_EQ(bvh.closest_point(v3(2, 2, 0), 0).triangle, 1u);  // a left-out hint is ignored
+  EXPECT_FALSE(bvh.closest_point(v3(NAN, 0, 0)).found());
+}
+
+TEST(TriangleBvh, WithinFindsOnlyStrictlyCloserSurface) {
+  const std::vector<Vec3d> positions = {v3(0, 0, 0), v3(1, 0, 0), v3(0, 1, 0)};
+  const std::vector<std::uint32_t> indices = {0, 1, 2};
+  const TriangleBvh bvh(positions, indices);
+  EXPECT_FALSE(bvh.closest_point_within(v3(0.25, 0.25, 2), 2.0).found());
+  const BvhHit hit = bvh.closest_point_within(v3(0.25, 0.25, 2), 2.001);
+  ASSERT_TRUE(hit.found());
+  EXPECT_NEAR(hit.distance(), 2.0, 1e-15);
+}
+
+TEST(TriangleBvh, MeshTrianglesAreNumberedLikeTriangulated) {
+  const Mesh cube = testing::make_cube_quads();
+  const TriangleBvh bvh = make_triangle_bvh(cube);
+  const Mesh tris = triangulated(cube);
+  ASSERT_EQ(bvh.triangle_count(), tris.face_count());
+  for (std::uint32_t t = 0; t < tris.face_count(); ++t) {
+    const std::array<Vec3d, 3> corners = bvh.triangle(t);
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_EQ(corners[k], to_double(tris.positions[tris.corner_vertex(3 * t + k)])) << t << "," << k;
+    }
+  }
+  // Centre of face z = 0 (quad 0, triangles 0 and 1), seen from below.
+  const BvhHit hit = bvh.closest_point(v3(0.25, 0.75, -1));
+  EXPECT_LT(hit.triangle, 2u);
+  EXPECT_NEAR(hit.distance(), 1.0, 1e-15);
+}
+
+}  // namespace
+}  // namespace lodforge
