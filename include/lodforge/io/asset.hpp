@@ -31,7 +31,7 @@ class IoError : public std::runtime_error {
   std::string problem_;
 };
 
-struct GltfDocument;  // opaque: the source glTF document (defined in src/io/gltf.cpp)
+struct GltfDocument;  // opaque: the source glTF document (defined in src/io/gltf_internal.hpp)
 
 struct Asset {
   std::filesystem::path source;
