@@ -1,0 +1,84 @@
+#!/usr/bin/env bash
+# Sets up (installs what is missing, builds; see scripts/setup.sh) and runs the benchmarks of tests/bench.
+# Benchmarks are never part of the tests: they print numbers and MET / NOT MET lines, and exit 0 whatever they say.
+#
+#   scripts/bench.sh [ARGS...]            both benchmarks; ARGS go to lodforge_bench_simplify
+#   scripts/bench.sh simplify [ARGS...]   only lodforge_bench_simplify
+#   scripts/bench.sh load [ARGS...]       only lodforge_bench_load
+#
+# lodforge_bench_simplify (lodforge vs meshoptimizer vs OpenMesh Decimater: speed, peak memory, quality):
+#   --quick                  fast subset (bunny, dragon, buddha, lucy; ratios 0.1,0.02,0.01; 500k generated mesh;
+#                            300k eval samples; 1 repetition; OpenMesh only up to 150k triangles)
+#   --input DIR              folder of meshes (default ../shared/corpus/scanned)
+#   --mesh FILE              run these files instead (repeatable)
+#   --ratios 0.5,0.1,...     target ratios (default 0.5,0.1,0.02,0.01)
+#   --methods a,b            subset of lodforge-1t,lodforge-all,meshopt,openmesh
+#   --no-generated           skip the generated ~2M-triangle torus (--generated-triangles N to resize it)
+#   --eval-samples N         area samples per direction for the quality evaluation (default 1000000); --no-eval
+#   --reps N, --rep-budget S best of up to N repetitions, fewer once they add up to S seconds (default 3, 1.0)
+#   --openmesh-max N         skip the (slow) Decimater on meshes above N triangles (default 1000000)
+#   --timeout S              kill one run after S seconds (default 900)
+#   --json FILE              JSON report (default here: $BUILD_DIR/bench/bench-simplify.json)
+# lodforge_bench_load (load_asset vs OpenMesh IO; Google Benchmark): --corpus=DIR, --file=PATH (repeatable) and
+#   every --benchmark_* flag; JSON report: $BUILD_DIR/bench/bench-load.json. With `--quick` in the combined mode
+#   the load benchmark runs with --benchmark_min_time=0.1.
+#
+# Environment: BUILD_DIR (default build), BUILD_TYPE (default Release), BENCH_SKIP_SETUP=1 to skip setup.sh
+# (use an existing build), LOAD_BENCH_ARGS (extra arguments for the load benchmark in the combined mode).
+# Timings are only meaningful on an otherwise idle machine; the simplify benchmark prints the load average.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+BUILD_DIR=${BUILD_DIR:-build}
+if [ "${BENCH_SKIP_SETUP:-0}" != 1 ]; then
+  scripts/setup.sh
+fi
+SIMPLIFY="$BUILD_DIR/tests/bench/lodforge_bench_simplify"
+LOAD="$BUILD_DIR/tests/bench/lodforge_bench_load"
+for b in "$SIMPLIFY" "$LOAD"; do
+  if [ ! -x "$b" ]; then
+    echo "bench: $b is missing (configure with -DLODFORGE_BUILD_BENCH=ON and build)" >&2
+    exit 2
+  fi
+done
+OUT_DIR="$BUILD_DIR/bench"
+mkdir -p "$OUT_DIR"
+
+mode=all
+case "${1:-}" in
+  simplify | load) mode=$1; shift ;;
+esac
+
+run_simplify() {
+  local has_json=0
+  for a in "$@"; do
+    case "$a" in --json | --json=*) has_json=1 ;; esac
+  done
+  if [ $has_json = 1 ]; then
+    "$SIMPLIFY" "$@"
+  else
+    "$SIMPLIFY" --json "$OUT_DIR/bench-simplify.json" "$@"
+  fi
+}
+
+run_load() {
+  "$LOAD" --benchmark_out="$OUT_DIR/bench-load.json" --benchmark_out_format=json "$@"
+}
+
+case $mode in
+  simplify) run_simplify "$@" ;;
+  load) run_load "$@" ;;
+  all)
+    load_args=()
+    for a in "$@"; do
+      [ "$a" = --quick ] && load_args+=(--benchmark_min_time=0.1)
+    done
+    # shellcheck disable=SC2206  # LOAD_BENCH_ARGS is a space-separated list on purpose
+    [ -n "${LOAD_BENCH_ARGS:-}" ] && load_args+=(${LOAD_BENCH_ARGS})
+    echo "== lodforge_bench_simplify =="
+    run_simplify "$@"
+    echo
+    echo "== lodforge_bench_load =="
+    run_load "${load_args[@]+"${load_args[@]}"}"
+    ;;
+esac
