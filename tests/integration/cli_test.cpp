@@ -13,14 +13,14 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct Run {
+struct CliRun {
   int code = -1;
   std::string output;  // stdout and stderr together
 };
 
-Run run_cli(const std::string& args) {
+CliRun run_cli(const std::string& args) {
   const std::string cmd = std::string(LODFORGE_CLI) + " " + args + " 2>&1";
-  Run r;
+  CliRun r;
   FILE* p = popen(cmd.c_str(), "r");
   if (!p) return r;
   std::array<char, 4096> buf{};
@@ -42,7 +42,7 @@ bool no_temporaries(const fs::path& dir) {
 }
 
 TEST(Cli, HelpListsSubcommandsAndExitCodes) {
-  const Run r = run_cli("--help");
+  const CliRun r = run_cli("--help");
   EXPECT_EQ(r.code, 0);
   for (const char* s : {"info", "convert", "simplify", "eval", "demo", "Exit codes"}) {
     EXPECT_NE(r.output.find(s), std::string::npos) << s;
@@ -52,7 +52,7 @@ TEST(Cli, HelpListsSubcommandsAndExitCodes) {
 TEST(Cli, UnknownSubcommandIsUsageError) { EXPECT_EQ(run_cli("frobnicate").code, 2); }
 
 TEST(Cli, InfoOnMissingFileNamesItAndExitsTwo) {
-  const Run r = run_cli("info /nonexistent/dir/thing.obj");
+  const CliRun r = run_cli("info /nonexistent/dir/thing.obj");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("/nonexistent/dir/thing.obj: no such file"), std::string::npos) << r.output;
 }
@@ -60,7 +60,7 @@ TEST(Cli, InfoOnMissingFileNamesItAndExitsTwo) {
 TEST(Cli, ConvertOfBadInputWritesNothing) {
   const fs::path dir = lodforge::testing::temp_dir("cli_bad_convert");
   write_text(dir / "broken.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n");
-  const Run r = run_cli("convert " + (dir / "broken.obj").string() + " " + (dir / "out.ply").string());
+  const CliRun r = run_cli("convert " + (dir / "broken.obj").string() + " " + (dir / "out.ply").string());
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("broken.obj"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(dir / "out.ply"));
@@ -72,7 +72,7 @@ TEST(Cli, ConvertEmptyAndWrongMagicGlbExitTwo) {
   write_text(dir / "empty.glb", "");
   write_text(dir / "magic.glb", std::string("glTX\x02\0\0\0\x20\0\0\0", 12) + std::string(20, '\0'));
   for (const char* name : {"empty.glb", "magic.glb"}) {
-    const Run r = run_cli("convert " + (dir / name).string() + " " + (dir / "out.glb").string());
+    const CliRun r = run_cli("convert " + (dir / name).string() + " " + (dir / "out.glb").string());
     EXPECT_EQ(r.code, 2) << name << ": " << r.output;
     EXPECT_NE(r.output.find(name), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(dir / "out.glb"));
@@ -83,7 +83,7 @@ TEST(Cli, ConvertEmptyAndWrongMagicGlbExitTwo) {
 TEST(Cli, DemoLibraryLoadsCleanlyWithInfo) {
   const fs::path dir = lodforge::testing::temp_dir("cli_demo");
   ASSERT_EQ(run_cli("demo " + dir.string()).code, 0);
-  const Run r = run_cli("info " + dir.string());
+  const CliRun r = run_cli("info " + dir.string());
   EXPECT_EQ(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("summary: 5 asset(s) loaded, 0 failed"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("validation: 1"), std::string::npos) << "a sample asset has validation findings:\n"
@@ -112,10 +112,10 @@ TEST(Cli, SimplifyAndEvalOnDemoAsset) {
   const fs::path dir = lodforge::testing::temp_dir("cli_simplify");
   ASSERT_EQ(run_cli("demo " + dir.string()).code, 0);
   const fs::path in = dir / "environment/rock.ply", out = dir / "rock_lod1.ply";
-  const Run s = run_cli("simplify " + in.string() + " " + out.string() + " --ratio 0.25");
+  const CliRun s = run_cli("simplify " + in.string() + " " + out.string() + " --ratio 0.25");
   ASSERT_EQ(s.code, 0) << s.output;
   ASSERT_TRUE(fs::exists(out));
-  const Run e = run_cli("eval " + in.string() + " " + out.string() + " --json");
+  const CliRun e = run_cli("eval " + in.string() + " " + out.string() + " --json");
   ASSERT_EQ(e.code, 0) << e.output;
   EXPECT_NE(e.output.find("\"hausdorff_rel\""), std::string::npos);
 }
@@ -123,7 +123,7 @@ TEST(Cli, SimplifyAndEvalOnDemoAsset) {
 TEST(Cli, SimplifyRejectsInvalidOptions) {
   const fs::path dir = lodforge::testing::temp_dir("cli_simplify_bad");
   ASSERT_EQ(run_cli("demo " + dir.string()).code, 0);
-  const Run r = run_cli("simplify " + (dir / "environment/rock.ply").string() + " " + (dir / "x.ply").string() +
+  const CliRun r = run_cli("simplify " + (dir / "environment/rock.ply").string() + " " + (dir / "x.ply").string() +
                         " --ratio 1.5");
   EXPECT_EQ(r.code, 2);
   EXPECT_FALSE(fs::exists(dir / "x.ply"));

@@ -1,0 +1,1268 @@
+// Greedy quadric edge collapse.
+//
+// Papers and sources implemented here:
+//  - M. Garland, P. Heckbert, "Surface Simplification Using Quadric Error Metrics", SIGGRAPH 1997: plane
+//    quadrics, full-edge collapse to the optimal position, boundary constraint planes, greedy order.
+//  - T. Dey, H. Edelsbrunner, S. Guha, D. Nekhayev, "Topology Preserving Edge Contraction", 1999: the link
+//    condition, with boundaries coned to a virtual vertex (which yields the boundary pinch rule).
+//  - G. van den Bergen, "Conservative Mesh Decimation", GDC 2021: the rubber-band point quadric (see metric).
+//  - Independent-set batches as in ALGORITHMS.md 9.1/9.4 (meshoptimizer's pass structure, Wu & Kobbelt 2002):
+//    the batch is chosen sequentially in cost order, so the result does not depend on the thread count.
+//
+// Driver (run_edge_collapse):
+//   setup        normalise to the unit cube, build face lists, classify vertices, accumulate quadrics
+//   candidates   every allowed edge evaluated in parallel, queued (bucketed 4-ary min-heap of
+//                (cost, u, v, version sum); stale entries are skipped when they surface)
+//   rounds       pop the cheapest candidates whose closed neighbourhoods are disjoint (a batch, in cost order)
+//                → check them in parallel → commit in order (rejected ones are parked on their endpoints;
+//                list space is reserved in order, the rewrites run in parallel) → re-evaluate the edges around
+//                the survivors in parallel, and the parked candidates of their neighbourhoods → push in order
+//   output       compact alive faces, wedges and vertices
+// Every parallel step writes per-item outputs; everything that orders (pops, pushes, reservations) is
+// sequential, so the output is byte-identical for any thread count.
+#include "lodforge/simplify/edge_collapse.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+
+#include "lodforge/core/mesh.hpp"
+
+namespace lodforge::collapse {
+namespace {
+
+// Ordering key: GH97's raw, area-weighted E(x), not E(x)/W. On the bunny the raw key gives about 0.019% / 0.14%
+// mean error (of the diagonal) at 10% / 1% against 0.0205% / 0.155% for E/W, which lets vertices that absorbed
+// much surface move too easily. The error budget still compares E/W (a distance) and drops what exceeds it.
+
+// A surface quadric whose LDLᵀ pivots all exceed this fraction of its trace pins the placement down by itself
+// (corners, where the rubber band would only pull the vertex off); below, the band joins the solve. On the
+// bunny any value in [1e-9, 1e-2] gives the same mean error within 3%.
+constexpr double kWellConditioned = 1e-4;
+
+// A face whose |n|² is below this fraction of |e1|²|e2|² (sine of its angle below ~1e-6) counts as degenerate.
+constexpr double kDegenerateSine2 = 1e-12;
+
+// A list that outgrows its slot moves to the pool's end with this much extra room (in faces), so that a
+// vertex which keeps absorbing neighbours is not moved at every collapse.
+constexpr std::uint32_t kListSlack = 4;
+
+// Batch sizing (automatic max_batch): at most 1/kBatchDivisor of the live edges (under 1% of the queue) and at
+// most kMaxBatch. Measured on the bunny, mean error (% of the diagonal) at 10% / 1%: strictly sequential
+// 0.0191 / 0.141; batches of 1/256 (max 512) 0.0191 / 0.138; 1/128 (max 1024) 0.0191 / 0.142; 1/64 (max 2048)
+// 0.0192 / 0.143; 1/32 0.0193 / 0.142. Quality is flat, so the larger batches win: fewer rounds, and each
+// round gives the cores more to do.
+constexpr std::size_t kBatchDivisor = 128;
+constexpr std::size_t kMaxBatch = 1024;
+
+// Heap entries superseded by newer ones stay in the heap until popped; when the heap is this many times the
+// live edge count, drop them all at once (bounds memory; O(n) rebuild).
+constexpr std::size_t kPurgeFactor = 3;
+
+double elapsed_ms(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - since).count();
+}
+
+bool finite3(const Vec3d& p) { return std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]); }
+
+// Local corner of vertex v in face t (t has three vertices, one of them v).
+inline int corner_of(const std::uint32_t* t, std::uint32_t v) { return t[0] == v ? 0 : (t[1] == v ? 1 : 2); }
+
+constexpr int kNext[3] = {1, 2, 0};
+constexpr int kPrev[3] = {2, 0, 1};
+
+// Insertion sort for the short lists of one vertex star (valence ~6), std::sort beyond.
+template <typename T>
+void small_sort(T* p, std::size_t n) {
+  if (n > 32) {
+    std::sort(p, p + n);
+    return;
+  }
+  for (std::size_t i = 1; i < n; ++i) {
+    const T x = p[i];
+    std::size_t j = i;
+    for (; j > 0 && x < p[j - 1]; --j) p[j] = p[j - 1];
+    p[j] = x;
+  }
+}
+
+
+// ---- the candidate queue ----------------------------------------------------------------------------------
+
+// A queued candidate: edge (u, v), u < v, and vsum = version[u] + version[v] when it was evaluated. Versions
+// only grow (a collapse bumps both its endpoints, the dead one included), so an unchanged sum means neither
+// endpoint changed since: that is the whole staleness test (lazy invalidation).
+// key = float bits of the cost (costs are >= 0, so the bits order like the values) above u; ties on the key
+// break by v. 16 bytes, kept inline so that popping never chases a pointer.
+struct QueueEntry {
+  std::uint64_t key;
+  std::uint32_t v, vsum;
+  std::uint32_t u() const { return static_cast<std::uint32_t>(key); }
+  std::uint32_t bits() const { return static_cast<std::uint32_t>(key >> 32); }
+};
+
+inline std::uint32_t cost_bits(double cost) { return std::bit_cast<std::uint32_t>(static_cast<float>(cost)); }
+
+inline QueueEntry make_entry(std::uint32_t bits, std::uint32_t u, std::uint32_t v, std::uint32_t vsum) {
+  return {(std::uint64_t{bits} << 32) | u, v, vsum};
+}
+
+inline bool entry_less(const QueueEntry& a, const QueueEntry& b) {
+  return a.key < b.key || (a.key == b.key && a.v < b.v);
+}
+
+// Priority queue: a 4-ary min-heap in front of cost buckets (a bucketed heap).
+//
+// Costs only grow as the mesh coarsens (a quadric sum never loses a term), so nearly every re-evaluated
+// candidate lands above the current minimum. Such pushes go to a bucket (1/16 of an octave of cost, by the
+// float's exponent and top mantissa bits) as a plain append; the heap holds only the lowest non-empty bucket
+// plus whatever is pushed at or below it. When the heap runs dry the next bucket is filtered for stale
+// entries (in parallel: one version lookup each, the dominant cost of a plain heap) and heapified. The pop
+// order is exactly the (key, v) order of a single heap over all live entries.
+class CandidateQueue {
+ public:
+  static constexpr int kBucketShift = 19;  // float bits >> 19: sign, 8 exponent and 4 mantissa bits
+  CandidateQueue() : buckets_(std::size_t{1} << (32 - kBucketShift)) {}
+
+  std::size_t size() const { return stored_; }
+  const QueueEntry& top() const { return heap_.front(); }
+
+  void push(const QueueEntry& e) {
+    ++stored_;
+    const std::uint32_t b = e.bits() >> kBucketShift;
+    if (b <= active_ && active_ != kNone) {
+      heap_.push_back(e);
+      sift_up(heap_.size() - 1, e);
+    } else {
+      buckets_[b].push_back(e);
+      first_ = std::min(first_, b);
+    }
+  }
+  void pop() {
+    --stored_;
+    const QueueEntry last = heap_.back();
+    heap_.pop_back();
+    if (heap_.empty()) return;
+    // Bottom-up: walk the hole down along the smaller children to a leaf, then sift the last entry up from
+    // there; the last entry is usually large, so this saves a comparison per level.
+    const std::size_t n = heap_.size();
+    std::size_t i = 0;
+    for (std::size_t c = 1; c < n; c = 4 * i + 1) {
+      const std::size_t best = min_child(c, n);
+      heap_[i] = heap_[best];
+      i = best;
+    }
+    sift_up(i, last);
+  }
+  // Moves the next bucket into the heap once the heap is empty, dropping entries keep() rejects (decided in
+  // parallel). Returns false when nothing is left.
+  template <typename Keep>
+  bool refill(Parallel& parallel, Keep&& keep) {
+    while (heap_.empty()) {
+      while (first_ < buckets_.size() && buckets_[first_].empty()) ++first_;
+      if (first_ >= buckets_.size()) return false;
+      active_ = first_;
+      std::vector<QueueEntry>& bucket = buckets_[active_];
+      stored_ -= bucket.size();
+      keep_flags_.resize(bucket.size());
+      parallel.for_ranges(bucket.size(), 1024, [&](std::size_t b, std::size_t e) {
+        for (std::size_t i = b; i < e; ++i) keep_flags_[i] = keep(bucket[i]) ? 1 : 0;
+      });
+      for (std::size_t i = 0; i < bucket.size(); ++i) {
+        if (keep_flags_[i]) heap_.push_back(bucket[i]);
+      }
+      stored_ += heap_.size();
+      std::vector<QueueEntry>().swap(bucket);  // release: this bucket is now the heap
+      heapify();
+    }
+    return true;
+  }
+  // Drops every entry keep() rejects from the heap and all buckets (bounds memory).
+  template <typename Keep>
+  void purge(Parallel& parallel, Keep&& keep) {
+    std::vector<std::vector<QueueEntry>*> lists;
+    lists.push_back(&heap_);
+    for (auto& b : buckets_) {
+      if (!b.empty()) lists.push_back(&b);
+    }
+    parallel.for_ranges(lists.size(), 1, [&](std::size_t b, std::size_t e) {
+      for (std::size_t i = b; i < e; ++i) {
+        std::vector<QueueEntry>& l = *lists[i];
+        l.erase(std::remove_if(l.begin(), l.end(), [&](const QueueEntry& x) { return !keep(x); }), l.end());
+      }
+    });
+    stored_ = 0;
+    for (auto* l : lists) stored_ += l->size();
+    heapify();
+  }
+
+ private:
+  static constexpr std::uint32_t kNone = 0xffffffffu;
+
+  void heapify() {
+    const std::size_t n = heap_.size();
+    if (n < 2) return;
+    for (std::size_t i = (n - 2) / 4 + 1; i-- > 0;) {
+      const QueueEntry e = heap_[i];
+      std::size_t j = i;
+      for (std::size_t c = 4 * j + 1; c < n; c = 4 * j + 1) {
+        const std::size_t best = min_child(c, n);
+        if (!entry_less(heap_[best], e)) break;
+        heap_[j] = heap_[best];
+        j = best;
+      }
+      heap_[j] = e;
+    }
+  }
+  std::size_t min_child(std::size_t c, std::size_t n) const {
+    const QueueEntry* p = &heap_[c];
+    std::size_t best = 0;
+    const std::size_t end = std::min<std::size_t>(4, n - c);
+    for (std::size_t j = 1; j < end; ++j) best = entry_less(p[j], p[best]) ? j : best;
+    return c + best;
+  }
+  void sift_up(std::size_t i, const QueueEntry& e) {
+    while (i > 0) {
+      const std::size_t p = (i - 1) / 4;
+      if (!entry_less(e, heap_[p])) break;
+      heap_[i] = heap_[p];
+      i = p;
+    }
+    heap_[i] = e;
+  }
+
+  std::vector<std::vector<QueueEntry>> buckets_;
+  std::vector<QueueEntry> heap_;
+  std::vector<std::uint8_t> keep_flags_;
+  std::uint32_t active_ = kNone;  // highest bucket whose entries live in the heap
+  std::uint32_t first_ = 0;       // no bucket below this one holds entries
+  std::size_t stored_ = 0;
+};
+
+// Candidates refused at check time wait here, listed on both endpoints, until a collapse changes either
+// endpoint's neighbourhood; then they are evaluated again. Without this an edge refused once (say by the
+// fold test in a flat region) would never be reconsidered and simplification would stall.
+class ParkingLot {
+ public:
+  explicit ParkingLot(std::size_t vertices) : head_(vertices, kInvalidIndex) {}
+  void park(std::uint32_t u, std::uint32_t v) {
+    for (std::uint32_t s : {u, v}) {
+      entries_.push_back({u, v, head_[s]});
+      head_[s] = static_cast<std::uint32_t>(entries_.size() - 1);
+      ++waiting_;
+    }
+  }
+  // Appends the candidates parked on x to `out` and forgets them there.
+  void release(std::uint32_t x, std::vector<std::pair<std::uint32_t, std::uint32_t>>& out) {
+    for (std::uint32_t i = head_[x]; i != kInvalidIndex; i = entries_[i].next) {
+      out.emplace_back(entries_[i].u, entries_[i].v);
+      --waiting_;
+    }
+    head_[x] = kInvalidIndex;
+  }
+  // Whether any list is non-empty (each candidate counts twice, once per endpoint).
+  bool any() const { return waiting_ > 0; }
+
+ private:
+  struct Entry {
+    std::uint32_t u, v, next;
+  };
+  std::vector<std::uint32_t> head_;
+  std::vector<Entry> entries_;
+  std::size_t waiting_ = 0;
+};
+
+}  // namespace
+
+// ---- Parallel -----------------------------------------------------------------------------------------------
+
+Parallel::Parallel(unsigned threads)
+    : concurrency_(threads == 0 ? static_cast<unsigned>(tbb::this_task_arena::max_concurrency()) : threads),
+      arena_(static_cast<int>(threads == 0 ? tbb::task_arena::automatic : threads)) {
+  if (concurrency_ == 0) concurrency_ = 1;
+}
+
+// ---- CollapseMesh: setup ------------------------------------------------------------------------------------
+
+CollapseMesh::CollapseMesh(const Mesh& m, const SimplifyOptions& options, Parallel& parallel)
+    : src_(m), options_(options) {
+  const std::size_t nv = m.vertex_count(), nw = m.wedge_count();
+  for (std::uint32_t v : options.locked_vertices) {
+    if (v >= nv) {
+      throw std::invalid_argument("simplify: locked vertex " + std::to_string(v) + " out of range (mesh has " +
+                                  std::to_string(nv) + " vertices)");
+    }
+  }
+  // Bounding box of the finite positions (as compute_bounds), reduced over fixed chunks: min and max are
+  // exact, so the result does not depend on how the chunks are spread over threads.
+  constexpr std::size_t kVertexChunk = 16384;
+  std::vector<Bounds3> chunk_bounds((nv + kVertexChunk - 1) / kVertexChunk);
+  parallel.for_ranges(chunk_bounds.size(), 1, [&](std::size_t cb, std::size_t ce) {
+    for (std::size_t c = cb; c < ce; ++c) {
+      for (std::size_t v = c * kVertexChunk; v < std::min(nv, (c + 1) * kVertexChunk); ++v) {
+        const Vec3f& p = m.positions[v];
+        if (std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2])) chunk_bounds[c].add(to_double(p));
+      }
+    }
+  });
+  Bounds3 bounds;
+  for (const Bounds3& b : chunk_bounds) {
+    if (!b.empty()) {
+      bounds.add(b.min);
+      bounds.add(b.max);
+    }
+  }
+  diagonal_ = bounds.diagonal();
+  if (!bounds.empty()) {
+    origin_ = bounds.min;
+    const Vec3d ext = bounds.max - bounds.min;
+    const double e = std::max({ext[0], ext[1], ext[2]});
+    scale_ = e > 0.0 ? e : 1.0;
+  }
+  cos_max_flip_ = std::cos(options.max_flip_angle_deg * std::numbers::pi / 180.0);
+
+  vx_.resize(nv);
+  version_.assign(nv, 0);
+  kind_.assign(nv, VertexKind::interior);
+  state_.assign(nv, 0);
+  const double inv = 1.0 / scale_;
+  parallel.for_ranges(nv, 4096, [&](std::size_t b, std::size_t e) {
+    for (std::size_t v = b; v < e; ++v) vx_[v].pos = (to_double(m.positions[v]) - origin_) * inv;
+  });
+
+  // Working triangles: those with valid indices and three distinct vertices. Two parallel passes over fixed
+  // chunks of faces (count, then fill at the chunk's prefix offset): input order, whatever the threads.
+  const std::size_t nf = m.face_count();
+  auto valid = [&](std::size_t f, std::uint32_t* w, std::uint32_t* v) {
+    if (m.face_offsets[f + 1] - m.face_offsets[f] != 3) return false;
+    const std::uint32_t c = m.face_offsets[f];
+    for (int i = 0; i < 3; ++i) {
+      w[i] = m.corner_wedge[c + i];
+      if (w[i] >= nw) return false;
+      v[i] = m.wedge_vertex[w[i]];
+      if (v[i] >= nv) return false;
+    }
+    return v[0] != v[1] && v[1] != v[2] && v[0] != v[2];
+  };
+  constexpr std::size_t kFaceChunk = 16384;
+  const std::size_t chunks = (nf + kFaceChunk - 1) / kFaceChunk;
+  std::vector<std::uint32_t> chunk_first(chunks + 1, 0);
+  parallel.for_ranges(chunks, 1, [&](std::size_t cb, std::size_t ce) {
+    for (std::size_t c = cb; c < ce; ++c) {
+      std::uint32_t n = 0, w[3], v[3];
+      for (std::size_t f = c * kFaceChunk; f < std::min(nf, (c + 1) * kFaceChunk); ++f) n += valid(f, w, v);
+      chunk_first[c] = n;
+    }
+  });
+  std::uint32_t total = 0;
+  for (std::size_t c = 0; c <= chunks; ++c) total += std::exchange(chunk_first[c], total);
+  tri_.resize(3 * std::size_t{total});
+  tri_wedge_.resize(3 * std::size_t{total});
+  tri_source_.resize(total);
+  parallel.for_ranges(chunks, 1, [&](std::size_t cb, std::size_t ce) {
+    for (std::size_t c = cb; c < ce; ++c) {
+      std::uint32_t out = chunk_first[c], w[3], v[3];
+      for (std::size_t f = c * kFaceChunk; f < std::min(nf, (c + 1) * kFaceChunk); ++f) {
+        if (!valid(f, w, v)) continue;
+        std::copy(v, v + 3, &tri_[3 * std::size_t{out}]);
+        std::copy(w, w + 3, &tri_wedge_[3 * std::size_t{out}]);
+        tri_source_[out++] = static_cast<std::uint32_t>(f);
+      }
+    }
+  });
+  alive_faces_ = tri_source_.size();
+
+  // Vertex → faces lists (counting sort: each list in face order).
+  size_.assign(nv, 0);
+  for (std::uint32_t v : tri_) ++size_[v];
+  begin_.resize(nv);
+  std::uint32_t acc = 0;
+  for (std::size_t v = 0; v < nv; ++v) {
+    begin_[v] = acc;
+    acc += size_[v];
+  }
+  capacity_ = size_;
+  pool_.reserve(acc + acc / 2);
+  pool_.resize(acc);
+  {
+    std::vector<std::uint32_t> fill(begin_);
+    for (std::size_t i = 0; i < tri_.size(); ++i) pool_[fill[tri_[i]]++] = static_cast<std::uint32_t>(i / 3);
+  }
+
+  setup(parallel);
+}
+
+// Classifies every vertex from its fan and accumulates its quadric. One pass, parallel over vertices; each
+// vertex sums its own faces in list order, so the sums do not depend on the thread count.
+void CollapseMesh::setup(Parallel& parallel) {
+  const std::size_t nv = vx_.size();
+  std::vector<std::uint8_t> user_locked(nv, 0);
+  for (std::uint32_t v : options_.locked_vertices) user_locked[v] = 1;
+  const bool preserve = options_.border_mode == BorderMode::preserve;
+  const bool lock_border = options_.border_mode == BorderMode::lock;
+
+  // Face planes once per face (unit normal, offset, area); each vertex then sums its faces' quadrics.
+  struct FacePlane {
+    Vec3d n;
+    double d, area;
+  };
+  std::vector<FacePlane> planes(tri_source_.size());
+  parallel.for_ranges(planes.size(), 4096, [&](std::size_t b, std::size_t e) {
+    for (std::size_t f = b; f < e; ++f) {
+      const std::uint32_t* t = &tri_[3 * f];
+      const Vec3d n = cross(vx_[t[1]].pos - vx_[t[0]].pos, vx_[t[2]].pos - vx_[t[0]].pos);
+      const double len = length(n);
+      if (len > 0.0 && std::isfinite(len)) {
+        const Vec3d unit = n * (1.0 / len);
+        planes[f] = {unit, -dot(unit, vx_[t[0]].pos), 0.5 * len};
+      } else {
+        planes[f] = {{}, 0.0, 0.0};  // degenerate or non-finite: no surface
+      }
+    }
+  });
+
+  tbb::enumerable_thread_specific<Scratch> scratch;
+  parallel.for_ranges(nv, 1024, [&](std::size_t vb, std::size_t ve) {
+    Scratch& s = scratch.local();
+    for (std::size_t vi = vb; vi < ve; ++vi) {
+      const auto v = static_cast<std::uint32_t>(vi);
+      const std::uint32_t m = size_[v];
+      const std::uint32_t* fl = &pool_[begin_[v]];
+      if (!finite3(vx_[v].pos)) {
+        kind_[v] = VertexKind::frozen;
+        continue;
+      }
+      if (m == 0) continue;
+
+      // Spokes (v, x) packed as x << 32 | code, code = 2 × face slot + direction (0: v → x in the face), so
+      // that sorting groups the faces of each spoke.
+      s.spokes.resize(2 * std::size_t{m});
+      Quadric q;
+      bool seam = false;
+      const std::uint32_t w0 = tri_wedge_[3 * std::size_t{fl[0]} + corner_of(&tri_[3 * std::size_t{fl[0]}], v)];
+      for (std::uint32_t i = 0; i < m; ++i) {
+        const std::uint32_t* t = &tri_[3 * std::size_t{fl[i]}];
+        const int j = corner_of(t, v);
+        s.spokes[2 * i] = (std::uint64_t{t[kNext[j]]} << 32) | (2 * i);
+        s.spokes[2 * i + 1] = (std::uint64_t{t[kPrev[j]]} << 32) | (2 * i + 1);
+        seam = seam || tri_wedge_[3 * std::size_t{fl[i]} + j] != w0;
+        const FacePlane& pl = planes[fl[i]];
+        Quadric fq = Quadric::from_plane(pl.n, pl.d, pl.area);
+        fq.weight = pl.area;
+        q += fq;
+      }
+      if (seam) state_[v] |= kSeam;
+
+      // Fast path, most vertices: one closed, consistently oriented fan. Walk from face 0 to the face that
+      // has the next spoke as its previous one; a closed fan comes back to face 0 after exactly m steps,
+      // each step finding exactly one face.
+      if (m <= 16 && !user_locked[v]) {
+        std::uint32_t cur = 0;
+        bool closed = true;
+        for (std::uint32_t step = 1; step <= m && closed; ++step) {
+          const auto x = static_cast<std::uint32_t>(s.spokes[2 * cur] >> 32);
+          std::uint32_t found = 0, count = 0;
+          for (std::uint32_t j = 0; j < m; ++j) {
+            if (static_cast<std::uint32_t>(s.spokes[2 * j + 1] >> 32) == x) {
+              found = j;
+              ++count;
+            }
+          }
+          closed = count == 1 && (found != 0 || step == m);
+          cur = found;
+        }
+        if (closed && cur == 0) {
+          vx_[v].quadric = q;
+          kind_[v] = VertexKind::interior;
+          continue;
+        }
+      }
+      small_sort(s.spokes.data(), s.spokes.size());
+
+      // Fans: union faces across spokes shared by exactly two faces.
+      s.parent.resize(m);
+      for (std::uint32_t i = 0; i < m; ++i) s.parent[i] = i;
+      auto find = [&](std::uint32_t x) {
+        while (s.parent[x] != x) x = s.parent[x] = s.parent[s.parent[x]];
+        return x;
+      };
+      bool boundary = false, non_manifold = false, inconsistent = false;
+      const std::size_t ns = s.spokes.size();
+      for (std::size_t i = 0; i < ns;) {
+        const std::uint32_t x = static_cast<std::uint32_t>(s.spokes[i] >> 32);
+        std::size_t j = i + 1;
+        while (j < ns && static_cast<std::uint32_t>(s.spokes[j] >> 32) == x) ++j;
+        const std::size_t run = j - i;
+        const auto code0 = static_cast<std::uint32_t>(s.spokes[i]);
+        if (run == 1) {
+          boundary = true;
+          if (preserve) {
+            const std::uint32_t* t = &tri_[3 * std::size_t{fl[code0 / 2]}];
+            const Vec3d n = cross(vx_[t[1]].pos - vx_[t[0]].pos, vx_[t[2]].pos - vx_[t[0]].pos);
+            q += Quadric::from_boundary_edge(vx_[v].pos, vx_[x].pos, n, options_.border_weight);
+          }
+        } else if (run == 2) {
+          const auto code1 = static_cast<std::uint32_t>(s.spokes[i + 1]);
+          if ((code0 & 1) == (code1 & 1)) inconsistent = true;
+          const std::uint32_t r0 = find(code0 / 2), r1 = find(code1 / 2);
+          if (r0 != r1) s.parent[std::max(r0, r1)] = std::min(r0, r1);
+        } else {
+          non_manifold = true;
+        }
+        i = j;
+      }
+      std::uint32_t fans = 0;
+      for (std::uint32_t i = 0; i < m; ++i) fans += find(i) == i;
+      if (fans > 1) non_manifold = true;
+
+      vx_[v].quadric = q;
+      if (user_locked[v] || non_manifold || inconsistent || (lock_border && boundary)) {
+        kind_[v] = VertexKind::locked;
+      } else {
+        kind_[v] = boundary ? VertexKind::border : VertexKind::interior;
+      }
+    }
+  });
+
+  // Faces touching a frozen vertex: their other vertices lock too (any collapse would test or move a face
+  // with a non-finite corner).
+  for (std::size_t f = 0; f < tri_source_.size(); ++f) {
+    const std::uint32_t* t = &tri_[3 * f];
+    if (kind_[t[0]] == VertexKind::frozen || kind_[t[1]] == VertexKind::frozen || kind_[t[2]] == VertexKind::frozen) {
+      for (int i = 0; i < 3; ++i) {
+        if (kind_[t[i]] != VertexKind::frozen) kind_[t[i]] = VertexKind::locked;
+      }
+    }
+  }
+
+  // Rubber band: a point quadric at each vertex, weight relative to the mean face area (each face's area was
+  // added to three vertices). Summed in vertex order: deterministic. Kept apart from the surface quadric as
+  // (count, sum of positions): it only steers the placement; the cost is the surface error alone.
+  double area3 = 0.0;
+  for (std::size_t v = 0; v < nv; ++v) area3 += vx_[v].quadric.weight;
+  const double mean_area = alive_faces_ > 0 ? area3 / 3.0 / static_cast<double>(alive_faces_) : 0.0;
+  weight_floor_ = std::max(1e-30, 1e-6 * mean_area);
+  reg_weight_ = options_.regularization_weight * mean_area;
+  parallel.for_ranges(nv, 4096, [&](std::size_t b, std::size_t e) {
+    for (std::size_t v = b; v < e; ++v) {
+      if (size_[v] > 0 && kind_[v] != VertexKind::frozen) {
+        vx_[v].anchors = 1.0f;
+        vx_[v].anchor_sum = to_float(vx_[v].pos);
+      }
+    }
+  });
+}
+
+// ---- CollapseMesh: evaluation and checks ----------------------------------------------------------------------
+
+Evaluation CollapseMesh::evaluate(std::uint32_t u, std::uint32_t v) const {
+  const Vertex& xu = vx_[u];
+  const Vertex& xv = vx_[v];
+  const Quadric q = xu.quadric + xv.quadric;
+  Evaluation ev;
+  switch (rule(u, v)) {
+    case EdgeRule::keep_u: ev.position = xu.pos; break;
+    case EdgeRule::keep_v: ev.position = xv.pos; break;
+    default: {
+      // The surface quadric alone where it pins the point down (corners, creases with a third plane);
+      // with the rubber band where it does not (flat and nearly flat patches, where the surface error
+      // does not care and the band keeps the vertex inside the region it represents).
+      const auto x = q.minimizer(kWellConditioned);
+      const Vec3d edge = xv.pos - xu.pos;
+      const Vec3d off = x ? *x - (xu.pos + xv.pos) * 0.5 : Vec3d{};
+      if (x && dot(off, off) <= kMaxReachEdgeLengths * kMaxReachEdgeLengths * dot(edge, edge)) {
+        ev.position = *x;
+      } else {
+        Quadric solve = q;
+        const double w = reg_weight_ * (static_cast<double>(xu.anchors) + static_cast<double>(xv.anchors));
+        const Vec3f sum = xu.anchor_sum + xv.anchor_sum;
+        solve.a00 += w;
+        solve.a11 += w;
+        solve.a22 += w;
+        solve.b0 -= reg_weight_ * static_cast<double>(sum[0]);
+        solve.b1 -= reg_weight_ * static_cast<double>(sum[1]);
+        solve.b2 -= reg_weight_ * static_cast<double>(sum[2]);
+        ev.position = place_on_edge(solve, xu.pos, xv.pos).position;
+      }
+    }
+  }
+  const double e = q.evaluate(ev.position);
+  ev.error = e / (q.weight + weight_floor_);
+  ev.cost = e;
+  return ev;
+}
+
+bool CollapseMesh::flip_ok(const Vec3d& old_p, const Vec3d& x, const Vec3d& p, const Vec3d& q) const {
+  const Vec3d e1n = p - x, e2n = q - x;
+  const Vec3d nn = cross(e1n, e2n);
+  const double nn2 = dot(nn, nn);
+  if (!(nn2 > kDegenerateSine2 * dot(e1n, e1n) * dot(e2n, e2n))) return false;  // also false on NaN
+  const Vec3d e1o = p - old_p, e2o = q - old_p;
+  const Vec3d no = cross(e1o, e2o);
+  const double no2 = dot(no, no);
+  // An already degenerate face has no orientation to keep; the test above made it proper.
+  if (!(no2 > kDegenerateSine2 * dot(e1o, e1o) * dot(e2o, e2o))) return true;
+  const double d = dot(no, nn);
+  return d > 0.0 && d * d > cos_max_flip_ * cos_max_flip_ * no2 * nn2;
+}
+
+// Whether a's wedges map onto b's without merging distinct ones. The faces of edge ab pair each of their
+// a-corner wedges with their b-corner wedge; that pairing must be one-to-one, and every wedge a's other faces
+// use must be in it. Otherwise the collapse would have to invent attributes. Seam edges drawn as '=':
+//
+//   accepted: seam along ab              refused: seam e-a-f (drawn '|') passes through a
+//
+//        c                                       e
+//   w1  / \  v1                                  |    w1     c
+//   a ===== b    (w1 -> v1, w2 -> v2)        w2   a ------- b      a's w2 corners have no partner at b
+//   w2  \ /  v2                                  |    w1     d
+//        d                                       f
+bool CollapseMesh::wedges_carry_over(std::uint32_t a, std::uint32_t b, const Check& c) const {
+  std::uint32_t wa[2], wb[2];
+  for (std::uint32_t i = 0; i < c.edge_face_count; ++i) {
+    const std::uint32_t* t = &tri_[3 * std::size_t{c.edge_faces[i]}];
+    const std::uint32_t* w = &tri_wedge_[3 * std::size_t{c.edge_faces[i]}];
+    wa[i] = w[corner_of(t, a)];
+    wb[i] = w[corner_of(t, b)];
+  }
+  if (c.edge_face_count == 2 && ((wa[0] == wa[1]) != (wb[0] == wb[1]))) return false;
+  if ((state_[a] & kSeam) == 0) return true;  // one wedge at a: every corner carries wa[0]
+  const std::uint32_t* fl = &pool_[begin_[a]];
+  for (std::uint32_t i = 0; i < size_[a]; ++i) {
+    const std::uint32_t f = fl[i];
+    const std::uint32_t* t = &tri_[3 * std::size_t{f}];
+    const std::uint32_t w = tri_wedge_[3 * std::size_t{f} + corner_of(t, a)];
+    if (w != wa[0] && (c.edge_face_count < 2 || w != wa[1])) return false;
+  }
+  return true;
+}
+
+// Link condition with boundaries coned to a virtual vertex ω (ω is a neighbour of every boundary vertex and
+// an apex of every boundary edge). For edge ab with apexes c (and d), Lk(a) ∩ Lk(b) must equal Lk(ab):
+//
+//   vertices: the common neighbours of a and b are exactly the apexes ............ Veto::link_condition
+//             (ω common, i.e. both boundary, only if ab is a boundary edge) ....... Veto::boundary_pinch
+//   edges:    c-ω in both links (a-c and b-c both boundary edges) ................ Veto::dangling_face
+//             c-d in both links (faces a-c-d and b-c-d both exist) ............... Veto::tetrahedron
+//
+//   boundary pinch:   a ------- b   both on the boundary loop, ab interior:
+//                     \  ...   /    collapsing makes the loop touch itself at one vertex
+Check CollapseMesh::check(std::uint32_t u, std::uint32_t v, const Vec3d& x, Scratch& s) const {
+  Check c;
+  const EdgeRule r = rule(u, v);
+  // Default survivor: the lower id (u), so survivors keep input order; wedges may swap it below.
+  std::uint32_t a = v, b = u;
+  if (r == EdgeRule::keep_v) std::swap(a, b);
+
+  // Stars: s.na = [neighbour after a in each face | neighbour before a in each face], s.nb likewise.
+  const std::uint32_t ma = size_[a], mb = size_[b];
+  s.na.resize(2 * std::size_t{ma});
+  s.nb.resize(2 * std::size_t{mb});
+  std::uint32_t* const next_a = s.na.data();
+  std::uint32_t* const prev_a = next_a + ma;
+  std::uint32_t* const next_b = s.nb.data();
+  std::uint32_t* const prev_b = next_b + mb;
+  std::uint32_t apex[2] = {kInvalidIndex, kInvalidIndex};
+  std::uint32_t k = 0;
+  for (std::uint32_t w : {a, b}) {
+    const std::uint32_t* fl = &pool_[begin_[w]];
+    for (std::uint32_t i = 0; i < size_[w]; ++i) __builtin_prefetch(&tri_[3 * std::size_t{fl[i]}]);
+  }
+  {
+    const std::uint32_t* fl = &pool_[begin_[a]];
+    for (std::uint32_t i = 0; i < ma; ++i) {
+      const std::uint32_t* t = &tri_[3 * std::size_t{fl[i]}];
+      const int j = corner_of(t, a);
+      const std::uint32_t p = t[kNext[j]], q = t[kPrev[j]];
+      next_a[i] = p;
+      prev_a[i] = q;
+      if (p == b || q == b) {
+        if (k < 2) {
+          c.edge_faces[k] = fl[i];
+          apex[k] = p == b ? q : p;
+        }
+        ++k;
+      }
+    }
+  }
+  if (k == 0 || k > 2) {
+    c.veto = Veto::not_an_edge;
+    return c;
+  }
+  c.edge_face_count = k;
+  if (k == 2 && apex[0] == apex[1]) {
+    c.veto = Veto::link_condition;
+    return c;
+  }
+  {
+    const std::uint32_t* fl = &pool_[begin_[b]];
+    for (std::uint32_t i = 0; i < mb; ++i) {
+      const std::uint32_t* t = &tri_[3 * std::size_t{fl[i]}];
+      const int j = corner_of(t, b);
+      next_b[i] = t[kNext[j]];
+      prev_b[i] = t[kPrev[j]];
+    }
+  }
+  for (std::uint32_t i = 0; i < 2 * ma; ++i) prefetch(s.na[i]);  // positions for the fold test below
+  for (std::uint32_t i = 0; i < 2 * mb; ++i) prefetch(s.nb[i]);
+  if (k == 2) {
+    auto has_face_cd = [&](const std::uint32_t* nx, const std::uint32_t* pv, std::uint32_t m) {
+      for (std::uint32_t i = 0; i < m; ++i) {
+        if ((nx[i] == apex[0] && pv[i] == apex[1]) || (nx[i] == apex[1] && pv[i] == apex[0])) return true;
+      }
+      return false;
+    };
+    if (has_face_cd(next_a, prev_a, ma) && has_face_cd(next_b, prev_b, mb)) {
+      c.veto = Veto::tetrahedron;
+      return c;
+    }
+  }
+
+  std::uint32_t common = 0;
+  bool a_boundary = false, b_boundary = false, dangling = false;
+  const VertexKind kb = kind_[b];
+  if (kb == VertexKind::interior || kb == VertexKind::border) {
+    // Both stars are single, consistently oriented fans whose kind is kept exact by commit(): the
+    // neighbours are the "after" list plus, on a border vertex, the one "before" neighbour that is never
+    // "after" (the fan's first spoke). Border spokes are that one and the "after" that is never "before".
+    auto contains = [](const std::uint32_t* l, std::uint32_t n, std::uint32_t x) {
+      bool f = false;
+      for (std::uint32_t i = 0; i < n; ++i) f |= l[i] == x;
+      return f;
+    };
+    auto lone = [&](const std::uint32_t* from, const std::uint32_t* other, std::uint32_t m) {
+      for (std::uint32_t i = 0; i < m; ++i) {
+        if (!contains(other, m, from[i])) return from[i];
+      }
+      return kInvalidIndex;
+    };
+    a_boundary = kind_[a] == VertexKind::border;
+    b_boundary = kb == VertexKind::border;
+    const std::uint32_t first_a = a_boundary ? lone(prev_a, next_a, ma) : kInvalidIndex;
+    const std::uint32_t first_b = b_boundary ? lone(prev_b, next_b, mb) : kInvalidIndex;
+    for (std::uint32_t i = 0; i < ma; ++i) {
+      const std::uint32_t x = next_a[i];
+      common += x != b && (contains(next_b, mb, x) || x == first_b);
+    }
+    if (first_a != kInvalidIndex && first_a != b) common += contains(next_b, mb, first_a) || first_a == first_b;
+    if (k == 1 && a_boundary && b_boundary) {
+      const std::uint32_t last_a = lone(next_a, prev_a, ma), last_b = lone(next_b, prev_b, mb);
+      dangling = (apex[0] == first_a || apex[0] == last_a) && (apex[0] == first_b || apex[0] == last_b);
+    }
+  } else {
+    // b is locked (possibly non-manifold): count multiplicities on sorted multisets. A spoke with one face
+    // is a boundary edge.
+    small_sort(s.na.data(), s.na.size());
+    small_sort(s.nb.data(), s.nb.size());
+    std::size_t i = 0, j = 0;
+    const std::size_t ni = s.na.size(), nj = s.nb.size();
+    while (i < ni || j < nj) {
+      const std::uint32_t xa = i < ni ? s.na[i] : kInvalidIndex;
+      const std::uint32_t xb = j < nj ? s.nb[j] : kInvalidIndex;
+      const std::uint32_t xm = std::min(xa, xb);
+      std::size_t ca = 0, cb = 0;
+      while (i < ni && s.na[i] == xm) ++i, ++ca;
+      while (j < nj && s.nb[j] == xm) ++j, ++cb;
+      if (ca == 1) a_boundary = true;
+      if (cb == 1) b_boundary = true;
+      if (ca > 0 && cb > 0) ++common;  // a and b themselves appear only in the other's list
+      if (ca == 1 && cb == 1 && (xm == apex[0] || xm == apex[1])) dangling = true;
+    }
+  }
+  if (common != k) {
+    c.veto = Veto::link_condition;
+    return c;
+  }
+  if (a_boundary && b_boundary && k == 2) {
+    c.veto = Veto::boundary_pinch;
+    return c;
+  }
+  if (dangling) {
+    c.veto = Veto::dangling_face;
+    return c;
+  }
+  c.boundary = a_boundary || b_boundary;
+
+  // Folds and degenerate faces: every face that survives around a or b, with its corner moved to x.
+  for (std::uint32_t w : {a, b}) {
+    if (vx_[w].pos == x) continue;  // half-edge collapse: the survivor's own faces do not move
+    const std::uint32_t other = w == a ? b : a;
+    const std::uint32_t* fl = &pool_[begin_[w]];
+    for (std::uint32_t i = 0; i < size_[w]; ++i) {
+      const std::uint32_t* t = &tri_[3 * std::size_t{fl[i]}];
+      const int j = corner_of(t, w);
+      const std::uint32_t p = t[kNext[j]], q = t[kPrev[j]];
+      if (p == other || q == other) continue;
+      if (!flip_ok(vx_[w].pos, x, vx_[p].pos, vx_[q].pos)) {
+        const Vec3d nn = cross(vx_[p].pos - x, vx_[q].pos - x);
+        c.veto = dot(nn, nn) > 0.0 ? Veto::fold : Veto::degenerate;
+        return c;
+      }
+    }
+  }
+
+  // Wedges: try the default survivor, then (if the rule allows either) the other one.
+  if ((state_[a] | state_[b]) & kSeam) {
+    if (!wedges_carry_over(a, b, c)) {
+      if (r == EdgeRule::optimal && wedges_carry_over(b, a, c)) {
+        std::swap(a, b);
+      } else {
+        c.veto = Veto::seam;
+        return c;
+      }
+    }
+  }
+  c.victim = a;
+  c.survivor = b;
+  return c;
+}
+
+// ---- CollapseMesh: commit ------------------------------------------------------------------------------------
+
+void CollapseMesh::reserve(Check& c) {
+  const std::uint32_t a = c.victim, b = c.survivor;
+  const std::uint32_t n = size_[a] + size_[b] - 2 * c.edge_face_count;
+  if (n <= capacity_[b]) {
+    c.list_begin = begin_[b];
+    c.list_capacity = capacity_[b];
+  } else if (n <= capacity_[a]) {  // a's slot is free after the collapse
+    c.list_begin = begin_[a];
+    c.list_capacity = capacity_[a];
+  } else {
+    c.list_begin = static_cast<std::uint32_t>(pool_.size());
+    c.list_capacity = n + kListSlack;
+    pool_.resize(pool_.size() + c.list_capacity);
+  }
+  alive_faces_ -= c.edge_face_count;
+}
+
+void CollapseMesh::apply(const Check& c, const Vec3d& x, Scratch& s) {
+  const std::uint32_t a = c.victim, b = c.survivor, k = c.edge_face_count;
+  std::uint32_t wa[2] = {kInvalidIndex, kInvalidIndex}, wb[2] = {kInvalidIndex, kInvalidIndex};
+  for (std::uint32_t i = 0; i < k; ++i) {
+    const std::uint32_t f = c.edge_faces[i];
+    std::uint32_t* t = &tri_[3 * std::size_t{f}];
+    const std::uint32_t* w = &tri_wedge_[3 * std::size_t{f}];
+    const int ja = corner_of(t, a), jb = corner_of(t, b);
+    wa[i] = w[ja];
+    wb[i] = w[jb];
+    // Remove the dying face from its apex's list (order kept).
+    const std::uint32_t apex = t[3 - ja - jb];
+    std::uint32_t* fl = &pool_[begin_[apex]];
+    std::uint32_t* end = fl + size_[apex];
+    std::uint32_t* it = std::find(fl, end, f);
+    std::copy(it + 1, end, it);
+    --size_[apex];
+    t[0] = kInvalidIndex;
+  }
+
+  // b's new list: its own surviving faces, then a's (renamed to b, wedges carried over).
+  s.ring.clear();
+  {
+    const std::uint32_t* fl = &pool_[begin_[b]];
+    for (std::uint32_t i = 0; i < size_[b]; ++i) {
+      if (tri_[3 * std::size_t{fl[i]}] != kInvalidIndex) s.ring.push_back(fl[i]);
+    }
+  }
+  {
+    const std::uint32_t* fl = &pool_[begin_[a]];
+    for (std::uint32_t i = 0; i < size_[a]; ++i) {
+      const std::uint32_t f = fl[i];
+      std::uint32_t* t = &tri_[3 * std::size_t{f}];
+      if (t[0] == kInvalidIndex) continue;
+      const int j = corner_of(t, a);
+      t[j] = b;
+      std::uint32_t& w = tri_wedge_[3 * std::size_t{f} + j];
+      w = (k == 2 && w == wa[1]) ? wb[1] : wb[0];
+      s.ring.push_back(f);
+    }
+  }
+  std::copy(s.ring.begin(), s.ring.end(), pool_.begin() + c.list_begin);
+  if (c.list_begin != begin_[b]) capacity_[a] = 0;  // b took a's slot, or moved to a new one
+  begin_[b] = c.list_begin;
+  capacity_[b] = c.list_capacity;
+  size_[b] = static_cast<std::uint32_t>(s.ring.size());
+  size_[a] = 0;
+
+  vx_[b].quadric += vx_[a].quadric;
+  vx_[b].anchors += vx_[a].anchors;
+  vx_[b].anchor_sum = vx_[b].anchor_sum + vx_[a].anchor_sum;
+  // Keep the kind of a free survivor exact (ring() and check() rely on it): it is on the boundary when
+  // either endpoint was.
+  if (kind_[b] == VertexKind::interior || kind_[b] == VertexKind::border) {
+    kind_[b] = c.boundary ? VertexKind::border : VertexKind::interior;
+  }
+  if (!(vx_[b].pos == x)) {
+    vx_[b].pos = x;
+    state_[b] |= kMoved;
+  }
+  state_[a] |= kDead;
+  ++version_[a];
+  ++version_[b];
+}
+
+void CollapseMesh::commit(Check c, const Vec3d& x, Scratch& s) {
+  reserve(c);
+  apply(c, x, s);
+}
+
+void CollapseMesh::ring(std::uint32_t v, std::vector<std::uint32_t>& out) const {
+  const std::uint32_t m = size_[v];
+  out.resize(2 * std::size_t{m});
+  std::uint32_t* o = out.data();
+  const std::uint32_t* fl = &pool_[begin_[v]];
+  for (std::uint32_t i = 0; i < m; ++i) __builtin_prefetch(&tri_[3 * std::size_t{fl[i]}]);
+  for (std::uint32_t i = 0; i < m; ++i) {
+    const std::uint32_t* t = &tri_[3 * std::size_t{fl[i]}];
+    const int j = corner_of(t, v);
+    o[i] = t[kNext[j]];      // neighbours that follow v in a face
+    o[m + i] = t[kPrev[j]];  // neighbours that precede v in a face
+  }
+  std::uint32_t n = 0;
+  const VertexKind k = kind_[v];
+  if (k == VertexKind::interior) {
+    n = m;  // a closed fan: every neighbour follows v in exactly one face
+  } else if (k == VertexKind::border && m <= 32) {
+    // An open fan: the neighbours that follow v, plus the one that only precedes it (the first spoke).
+    n = m;
+    for (std::uint32_t i = m; i < 2 * m; ++i) {
+      bool seen = false;
+      for (std::uint32_t j = 0; j < m; ++j) seen |= o[j] == o[i];
+      if (!seen) o[n++] = o[i];
+    }
+  } else {
+    small_sort(o, 2 * std::size_t{m});
+    for (std::uint32_t i = 0; i < 2 * m; ++i) {
+      if (n == 0 || o[n - 1] != o[i]) o[n++] = o[i];
+    }
+  }
+  out.resize(n);
+}
+
+// ---- CollapseMesh: output --------------------------------------------------------------------------------------
+
+Mesh CollapseMesh::output() const {
+  const Mesh& m = src_;
+  const std::size_t nw = m.wedge_count(), nv = m.vertex_count();
+  std::vector<std::uint32_t> wedge_map(nw, kInvalidIndex), vertex_map(nv, kInvalidIndex);
+  for (std::size_t f = 0; f < tri_source_.size(); ++f) {
+    if (tri_[3 * f] == kInvalidIndex) continue;
+    for (int j = 0; j < 3; ++j) wedge_map[tri_wedge_[3 * f + j]] = 0;
+  }
+  std::vector<std::uint32_t> wedges, vertices;  // kept ids, ascending
+  for (std::uint32_t w = 0; w < nw; ++w) {
+    if (wedge_map[w] == kInvalidIndex) continue;
+    wedge_map[w] = static_cast<std::uint32_t>(wedges.size());
+    wedges.push_back(w);
+    vertex_map[m.wedge_vertex[w]] = 0;
+  }
+  for (std::uint32_t v = 0; v < nv; ++v) {
+    if (vertex_map[v] == kInvalidIndex) continue;
+    vertex_map[v] = static_cast<std::uint32_t>(vertices.size());
+    vertices.push_back(v);
+  }
+
+  Mesh out;
+  out.positions.reserve(vertices.size());
+  for (std::uint32_t v : vertices) {
+    out.positions.push_back((state_[v] & kMoved) ? to_float(origin_ + vx_[v].pos * scale_) : m.positions[v]);
+  }
+  auto per_vertex = [&](const auto& in, auto& dst) {
+    if (in.size() != nv) return;
+    dst.reserve(vertices.size());
+    for (std::uint32_t v : vertices) dst.push_back(in[v]);
+  };
+  per_vertex(m.skin, out.skin);
+  per_vertex(m.priority, out.priority);
+
+  auto per_wedge = [&](const auto& in, auto& dst, std::size_t components) {
+    if (in.size() != nw * components) return;
+    dst.reserve(wedges.size() * components);
+    for (std::uint32_t w : wedges) {
+      for (std::size_t i = 0; i < components; ++i) dst.push_back(in[w * components + i]);
+    }
+  };
+  out.wedge_vertex.reserve(wedges.size());
+  for (std::uint32_t w : wedges) out.wedge_vertex.push_back(vertex_map[m.wedge_vertex[w]]);
+  per_wedge(m.normals, out.normals, 1);
+  per_wedge(m.tangents, out.tangents, 1);
+  out.uvs.resize(m.uvs.size());
+  for (std::size_t i = 0; i < m.uvs.size(); ++i) per_wedge(m.uvs[i], out.uvs[i], 1);
+  out.colors.resize(m.colors.size());
+  for (std::size_t i = 0; i < m.colors.size(); ++i) per_wedge(m.colors[i], out.colors[i], 1);
+  out.color_components = m.color_components;
+  out.custom.reserve(m.custom.size());
+  for (const CustomAttribute& a : m.custom) {
+    CustomAttribute c{a.name, a.components, a.format, {}};
+    per_wedge(a.values, c.values, static_cast<std::size_t>(std::max(a.components, 0)));
+    out.custom.push_back(std::move(c));
+  }
+  out.morph_targets.reserve(m.morph_targets.size());
+  for (const MorphTarget& t : m.morph_targets) {
+    MorphTarget o{t.name, {}, {}, {}};
+    per_wedge(t.position_deltas, o.position_deltas, 1);
+    per_wedge(t.normal_deltas, o.normal_deltas, 1);
+    per_wedge(t.tangent_deltas, o.tangent_deltas, 1);
+    out.morph_targets.push_back(std::move(o));
+  }
+  out.morph_default_weights = m.morph_default_weights;
+
+  out.face_offsets.reserve(alive_faces_ + 1);
+  out.corner_wedge.reserve(3 * alive_faces_);
+  out.face_material.reserve(alive_faces_);
+  const bool groups = m.face_group.size() == m.face_count();
+  for (std::size_t f = 0; f < tri_source_.size(); ++f) {
+    if (tri_[3 * f] == kInvalidIndex) continue;
+    const std::uint32_t w[3] = {wedge_map[tri_wedge_[3 * f]], wedge_map[tri_wedge_[3 * f + 1]],
+                                wedge_map[tri_wedge_[3 * f + 2]]};
+    const std::uint32_t sf = tri_source_[f];
+    out.add_face(w, 3, sf < m.face_material.size() ? m.face_material[sf] : 0);
+    if (groups) out.face_group.push_back(m.face_group[sf]);
+  }
+  out.materials = m.materials;
+  out.groups = m.groups;
+  out.formats = m.formats;
+  out.name = m.name;
+  return out;
+}
+
+// ---- shared helpers ----------------------------------------------------------------------------------------------
+
+double normalised_budget_squared(const SimplifyOptions& o, double scale, double diagonal) {
+  double b = std::numeric_limits<double>::infinity();
+  if (o.max_error_abs >= 0.0) b = std::min(b, o.max_error_abs / scale);
+  if (o.max_error_rel >= 0.0) b = std::min(b, o.max_error_rel * diagonal / scale);
+  return b * b;
+}
+
+std::size_t target_triangle_count(const SimplifyOptions& o, std::size_t input_triangles) {
+  if (o.target_triangles > 0) return std::min(o.target_triangles, input_triangles);
+  const double t = std::round(o.target_ratio * static_cast<double>(input_triangles));
+  return std::min(input_triangles, static_cast<std::size_t>(std::max(t, 0.0)));
+}
+
+// ---- the greedy engine -------------------------------------------------------------------------------------------
+
+SimplifyResult run_edge_collapse(const Mesh& triangles, const SimplifyOptions& options) {
+  SimplifyResult result;
+  auto t0 = std::chrono::steady_clock::now();
+  Parallel parallel(options.threads);
+  CollapseMesh cm(triangles, options, parallel);
+  const std::size_t nv = cm.vertex_count();
+  const std::size_t target = target_triangle_count(options, triangles.triangle_count());
+  const double budget2 = normalised_budget_squared(options, cm.scale(), cm.diagonal());
+  result.timings.setup_ms = elapsed_ms(t0);
+
+  // Initial candidates: every allowed edge once (u < v), evaluated in parallel.
+  t0 = std::chrono::steady_clock::now();
+  tbb::enumerable_thread_specific<Scratch> scratch;
+  CandidateQueue queue;
+  {
+    // Fixed chunks of vertices (not per thread), concatenated in chunk order: deterministic.
+    constexpr std::size_t kChunk = 4096;
+    std::vector<std::vector<QueueEntry>> chunks((nv + kChunk - 1) / kChunk);
+    parallel.for_ranges(chunks.size(), 1, [&](std::size_t cb, std::size_t ce) {
+      Scratch& s = scratch.local();
+      for (std::size_t c = cb; c < ce; ++c) {
+        std::vector<QueueEntry>& out = chunks[c];
+        const std::size_t vend = std::min(nv, (c + 1) * kChunk);
+        for (std::size_t v = c * kChunk; v < vend; ++v) {
+          const auto u = static_cast<std::uint32_t>(v);
+          cm.ring(u, s.ring);
+          for (std::uint32_t w : s.ring) {
+            if (w <= u || cm.rule(u, w) == EdgeRule::forbidden) continue;
+            out.push_back(make_entry(cost_bits(cm.evaluate(u, w).cost), u, w, cm.version(u) + cm.version(w)));
+          }
+        }
+      }
+    });
+    for (std::vector<QueueEntry>& chunk : chunks) {
+      for (const QueueEntry& e : chunk) queue.push(e);
+      std::vector<QueueEntry>().swap(chunk);
+    }
+  }
+  result.timings.initial_costs_ms = elapsed_ms(t0);
+
+  // Rounds.
+  t0 = std::chrono::steady_clock::now();
+  ParkingLot parked(nv);
+  std::vector<std::uint32_t> mark(nv, 0);
+  std::uint32_t stamp = 0;
+  std::vector<QueueEntry> selected, deferred;
+  std::vector<std::uint32_t> closed_ring;
+  std::vector<Evaluation> evals;
+  std::vector<Check> checks;
+  std::vector<std::uint32_t> survivors, committed, ring_first, ring_buf, ring_size;
+  std::vector<QueueEntry> fresh;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> released;
+  bool over_budget = false;
+  double max_error = 0.0;
+
+  auto current = [&](const QueueEntry& e) { return cm.version(e.u()) + cm.version(e.v) == e.vsum; };
+
+  while (cm.alive_faces() > target) {
+    const std::size_t remaining = cm.alive_faces() - target;
+    std::size_t batch = options.max_batch > 0
+                            ? options.max_batch
+                            : std::clamp<std::size_t>(cm.alive_faces() * 3 / 2 / kBatchDivisor, 1, kMaxBatch);
+    batch = std::min(batch, (remaining + 1) / 2);  // an interior collapse removes two triangles
+
+    // Select: cheapest first; defer candidates whose closed neighbourhood touches an already selected one.
+    selected.clear();
+    deferred.clear();
+    ++stamp;
+    while (selected.size() < batch && queue.refill(parallel, current)) {
+      const QueueEntry e = queue.top();
+      if (!current(e)) {
+        queue.pop();
+        continue;
+      }
+      queue.pop();
+      const std::size_t span = 3 * (std::size_t{cm.star_size(e.u())} + cm.star_size(e.v));
+      if (closed_ring.size() < span) closed_ring.resize(2 * span);
+      std::uint32_t* ring_out = closed_ring.data();
+      bool conflict = false;
+      cm.for_each_closed_ring_vertex(e.u(), e.v, [&](std::uint32_t w) {
+        conflict |= mark[w] == stamp;
+        *ring_out++ = w;
+      });
+      if (conflict) {
+        deferred.push_back(e);
+        if (deferred.size() >= 2 * batch) break;
+        continue;
+      }
+      for (const std::uint32_t* w = closed_ring.data(); w != ring_out; ++w) mark[*w] = stamp;
+      selected.push_back(e);
+    }
+    if (selected.empty()) {
+      for (const QueueEntry& e : deferred) queue.push(e);
+      break;
+    }
+    ++result.rounds;
+
+    // Check in parallel: the neighbourhoods are disjoint, so checking before any commit equals checking
+    // just before each commit.
+    const std::size_t ns = selected.size();
+    evals.resize(ns);
+    checks.resize(ns);
+    parallel.for_ranges(ns, 8, [&](std::size_t b, std::size_t e) {
+      Scratch& s = scratch.local();
+      for (std::size_t i = b; i < e; ++i) {
+        const std::uint32_t u = selected[i].u(), v = selected[i].v;
+        evals[i] = cm.evaluate(u, v);
+        if (evals[i].error <= budget2) checks[i] = cm.check(u, v, evals[i].position, s);
+      }
+    });
+
+    // Commit in selection order: room for the merged face lists is reserved sequentially (it may grow the
+    // pool), then the collapses apply in parallel (their neighbourhoods are disjoint).
+    survivors.clear();
+    committed.clear();
+    for (std::size_t i = 0; i < ns; ++i) {
+      if (evals[i].error > budget2) {
+        over_budget = true;  // not parked: its cost only changes when an endpoint does
+        continue;
+      }
+      if (!checks[i].ok()) {
+        parked.park(selected[i].u(), selected[i].v);
+        ++result.rejected;
+        continue;
+      }
+      cm.reserve(checks[i]);
+      max_error = std::max(max_error, evals[i].error);
+      committed.push_back(static_cast<std::uint32_t>(i));
+      survivors.push_back(checks[i].survivor);
+      ++result.collapses;
+    }
+    parallel.for_ranges(committed.size(), 16, [&](std::size_t b, std::size_t e) {
+      Scratch& s = scratch.local();
+      for (std::size_t j = b; j < e; ++j) cm.apply(checks[committed[j]], evals[committed[j]].position, s);
+    });
+
+    // Re-evaluate the edges around each survivor, in parallel. Each survivor writes its ring and its fresh
+    // candidates into its own region (sized by the ring bound, two neighbours per face), so the result is in
+    // survivor order whatever the threads do. The neighbourhoods are disjoint: no edge appears twice.
+    const std::size_t nsurv = survivors.size();
+    ring_first.resize(nsurv + 1);
+    std::uint32_t total = 0;
+    for (std::size_t i = 0; i < nsurv; ++i) {
+      ring_first[i] = total;
+      total += 2 * cm.star_size(survivors[i]);
+    }
+    ring_first[nsurv] = total;
+    ring_buf.resize(total);
+    ring_size.resize(nsurv);
+    fresh.resize(total);
+    parallel.for_ranges(nsurv, 8, [&](std::size_t b, std::size_t e) {
+      Scratch& s = scratch.local();
+      for (std::size_t i = b; i < e; ++i) {
+        const std::uint32_t sv = survivors[i];
+        cm.ring(sv, s.ring);
+        for (std::uint32_t w : s.ring) cm.prefetch(w);
+        const std::uint32_t base = ring_first[i];
+        ring_size[i] = static_cast<std::uint32_t>(s.ring.size());
+        for (std::size_t r = 0; r < s.ring.size(); ++r) {
+          const std::uint32_t w = s.ring[r];
+          ring_buf[base + r] = w;
+          if (cm.rule(sv, w) == EdgeRule::forbidden) {
+            fresh[base + r].vsum = kInvalidIndex;
+            continue;
+          }
+          const std::uint32_t u = std::min(sv, w), v = std::max(sv, w);
+          fresh[base + r] = make_entry(cost_bits(cm.evaluate(u, v).cost), u, v, cm.version(u) + cm.version(v));
+        }
+      }
+    });
+    for (std::size_t i = 0; i < nsurv; ++i) {
+      for (std::uint32_t r = 0; r < ring_size[i]; ++r) {
+        const QueueEntry& e = fresh[ring_first[i] + r];
+        if (e.vsum != kInvalidIndex) {
+          queue.push(e);
+        }
+      }
+    }
+
+    // Candidates parked anywhere in a survivor's new neighbourhood may have become valid: evaluate again.
+    // Pairs with a survivor endpoint were just re-evaluated above.
+    if (parked.any()) {
+      ++stamp;
+      for (std::uint32_t sv : survivors) mark[sv] = stamp;
+      released.clear();
+      for (std::size_t i = 0; i < nsurv; ++i) {
+        parked.release(survivors[i], released);
+        for (std::uint32_t r = 0; r < ring_size[i]; ++r) parked.release(ring_buf[ring_first[i] + r], released);
+      }
+      std::sort(released.begin(), released.end());
+      released.erase(std::unique(released.begin(), released.end()), released.end());
+      for (const auto& [u, v] : released) {
+        if (!cm.alive(u) || !cm.alive(v) || mark[u] == stamp || mark[v] == stamp) continue;
+        queue.push(make_entry(cost_bits(cm.evaluate(u, v).cost), u, v, cm.version(u) + cm.version(v)));
+      }
+    }
+    for (const QueueEntry& e : deferred) queue.push(e);
+
+    // Superseded entries: drop them in one sweep when they dominate the queue.
+    if (queue.size() > kPurgeFactor * (cm.alive_faces() * 3 / 2) + 4096) {
+      queue.purge(parallel, current);
+    }
+  }
+  result.timings.collapse_ms = elapsed_ms(t0);
+
+  t0 = std::chrono::steady_clock::now();
+  result.mesh = cm.output();
+  result.triangles_after = cm.alive_faces();
+  result.error_bound_abs = std::sqrt(max_error) * cm.scale();
+  result.error_bound_rel = cm.diagonal() > 0.0 ? result.error_bound_abs / cm.diagonal() : 0.0;
+  result.stop_reason = cm.alive_faces() <= target ? StopReason::target_reached
+                       : over_budget              ? StopReason::error_budget
+                                                  : StopReason::no_valid_collapse;
+  result.timings.output_ms = elapsed_ms(t0);
+  return result;
+}
+
+}  // namespace lodforge::collapse
