@@ -14,5 +14,10 @@ void register_convert(CLI::App& app);
 void register_simplify(CLI::App& app);
 void register_eval(CLI::App& app);
 void register_demo(CLI::App& app);
+// run.cpp: the batch commands.
+void register_run(CLI::App& app);
+void register_validate_config(CLI::App& app);
+void register_merge_reports(CLI::App& app);
+void register_bench(CLI::App& app);
 
 }  // namespace lodforge::cli

@@ -1,10 +1,12 @@
-// The `lodforge` command. Subcommands: info, convert, simplify, eval, demo.
+// The `lodforge` command. Subcommands: info, convert, simplify, eval, demo, run, validate-config,
+// merge-reports, bench.
 //
 // Exit codes (documented in --help and README):
 //   0  success
 //   1  some inputs failed while others succeeded (batch commands)
 //   2  usage error, or bad input (a file that cannot be read or is invalid); nothing is written
 //   3  internal error
+//   130  `run` stopped by Ctrl-C or SIGTERM (assets in flight finished, report written; a re-run resumes)
 #include <CLI/CLI.hpp>
 
 #include <chrono>
@@ -28,6 +30,10 @@ int main(int argc, char** argv) {
   lodforge::cli::register_simplify(app);
   lodforge::cli::register_eval(app);
   lodforge::cli::register_demo(app);
+  lodforge::cli::register_run(app);
+  lodforge::cli::register_validate_config(app);
+  lodforge::cli::register_merge_reports(app);
+  lodforge::cli::register_bench(app);
 
   try {
     app.parse(argc, argv);

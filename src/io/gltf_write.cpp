@@ -12,6 +12,10 @@
 // Output is deterministic: every order is derived from the input (mesh, slot, attribute order of the source
 // primitive), JSON objects keep their source key order, and numbers are printed by nlohmann::json's shortest
 // round-trip formatter.
+//
+// LOD chains (save_gltf_lods, lods.hpp): each LOD level of each mesh becomes a new glTF mesh written the same way
+// as its LOD0 (over the source primitives, so materials and attribute layout match), appended after the source
+// meshes, and each node showing a mesh gets one appended LOD node per level, named in its MSFT_lod extension.
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -22,6 +26,7 @@
 #include "gltf_internal.hpp"
 #include "lodforge/io/file.hpp"
 #include "lodforge/io/formats.hpp"
+#include "lodforge/io/lods.hpp"
 
 namespace lodforge::io {
 namespace {
@@ -731,7 +736,10 @@ void set_morph_weights(OrderedJson& jmesh, const Mesh& mesh) {
 
 // For an asset without a glTF source (OBJ, PLY, ...): one scene, a node and a mesh per non-empty Mesh, a
 // primitive per material slot, a default material per distinct slot name.
-OrderedJson build_document(const Asset& asset, DataBuilder& data, const std::filesystem::path& path) {
+// `json_mesh` receives, per asset mesh, the index of the glTF mesh written for it (-1 for one without faces).
+OrderedJson build_document(const Asset& asset, DataBuilder& data, const std::filesystem::path& path,
+                           std::vector<int>& json_mesh) {
+  json_mesh.assign(asset.meshes.size(), -1);
   OrderedJson doc = OrderedJson::object();
   doc["asset"] = {{"version", "2.0"}, {"generator", "lodforge"}};
   OrderedJson nodes = OrderedJson::array(), meshes = OrderedJson::array(), materials = OrderedJson::array();
@@ -753,6 +761,7 @@ OrderedJson build_document(const Asset& asset, DataBuilder& data, const std::fil
       prims.push_back(writer.write(slot, geometry[s], nullptr, it->second));
     }
     if (prims.empty()) continue;
+    json_mesh[m] = static_cast<int>(meshes.size());
     OrderedJson jmesh = OrderedJson::object();
     if (!mesh.name.empty()) jmesh["name"] = mesh.name;
     jmesh["primitives"] = std::move(prims);
@@ -779,51 +788,165 @@ OrderedJson build_document(const Asset& asset, DataBuilder& data, const std::fil
   return doc;
 }
 
+// The primitives of `mesh` written over the source mesh's primitives `old` (those of glTF mesh `m` as loaded):
+// converted primitives are rewritten from the slot read from them, others are carried unchanged, and slots
+// without a source primitive are appended.
+OrderedJson write_primitives(const Mesh& mesh, const GltfDocument& source, std::size_t m, const OrderedJson& old,
+                             const OrderedJson& doc, DataBuilder& data, const std::filesystem::path& path) {
+  const std::vector<SlotGeometry> geometry = split_by_slot(mesh, m, path);
+  PrimitiveWriter writer(mesh, &source, m, data, path);
+  const std::vector<char>& converted = source.converted[m];
+  std::vector<char> slot_done(geometry.size(), 0);
+  OrderedJson prims = OrderedJson::array();
+  for (std::size_t p = 0; p < old.size(); ++p) {
+    if (p >= converted.size() || !converted[p]) {
+      prims.push_back(old[p]);  // points, lines, primitives without positions: carried unchanged
+      continue;
+    }
+    // The slot read from this primitive; none (removed by the caller) or no faces left drops the primitive.
+    for (std::size_t s = 0; s < mesh.materials.size() && s < geometry.size(); ++s) {
+      if (slot_done[s] || mesh.materials[s].source_primitive != static_cast<int>(p)) continue;
+      slot_done[s] = 1;
+      if (!geometry[s].indices.empty()) {
+        prims.push_back(writer.write(&mesh.materials[s], geometry[s], &old[p], mesh.materials[s].gltf_material));
+      }
+      break;
+    }
+  }
+  for (std::size_t s = 0; s < geometry.size(); ++s) {
+    if (slot_done[s] || geometry[s].indices.empty()) continue;
+    const MaterialSlot* slot = s < mesh.materials.size() ? &mesh.materials[s] : nullptr;
+    const int material = slot && slot->gltf_material >= 0 &&
+                                 static_cast<std::size_t>(slot->gltf_material) < json_array(doc, "materials").size()
+                             ? slot->gltf_material
+                             : -1;
+    prims.push_back(writer.write(slot, geometry[s], nullptr, material));
+  }
+  if (prims.empty()) {
+    throw IoError(path, "mesh " + std::to_string(m) + (mesh.name.empty() ? "" : " '" + mesh.name + "'") +
+                            " has no faces left; a glTF mesh needs at least one primitive");
+  }
+  return prims;
+}
+
 // Replaces the converted primitives of the source document's meshes.
 void patch_meshes(const Asset& asset, const GltfDocument& source, OrderedJson& doc, DataBuilder& data,
                   const std::filesystem::path& path) {
   if (asset.meshes.empty()) return;
   OrderedJson& meshes = doc["meshes"];
   for (std::size_t m = 0; m < asset.meshes.size(); ++m) {
-    const Mesh& mesh = asset.meshes[m];
-    const std::vector<SlotGeometry> geometry = split_by_slot(mesh, m, path);
-    PrimitiveWriter writer(mesh, &source, m, data, path);
     OrderedJson& jmesh = meshes[m];
     const OrderedJson old = json_array(jmesh, "primitives");
-    const std::vector<char>& converted = source.converted[m];
-    std::vector<char> slot_done(geometry.size(), 0);
-    OrderedJson prims = OrderedJson::array();
-    for (std::size_t p = 0; p < old.size(); ++p) {
-      if (p >= converted.size() || !converted[p]) {
-        prims.push_back(old[p]);  // points, lines, primitives without positions: carried unchanged
-        continue;
-      }
-      // The slot read from this primitive; none (removed by the caller) or no faces left drops the primitive.
-      for (std::size_t s = 0; s < mesh.materials.size() && s < geometry.size(); ++s) {
-        if (slot_done[s] || mesh.materials[s].source_primitive != static_cast<int>(p)) continue;
-        slot_done[s] = 1;
-        if (!geometry[s].indices.empty()) {
-          prims.push_back(writer.write(&mesh.materials[s], geometry[s], &old[p], mesh.materials[s].gltf_material));
-        }
-        break;
-      }
-    }
-    for (std::size_t s = 0; s < geometry.size(); ++s) {
-      if (slot_done[s] || geometry[s].indices.empty()) continue;
-      const MaterialSlot* slot = s < mesh.materials.size() ? &mesh.materials[s] : nullptr;
-      const int material = slot && slot->gltf_material >= 0 &&
-                                   static_cast<std::size_t>(slot->gltf_material) < json_array(doc, "materials").size()
-                               ? slot->gltf_material
-                               : -1;
-      prims.push_back(writer.write(slot, geometry[s], nullptr, material));
-    }
-    if (prims.empty()) {
-      throw IoError(path, "mesh " + std::to_string(m) + (mesh.name.empty() ? "" : " '" + mesh.name + "'") +
-                              " has no faces left; a glTF mesh needs at least one primitive");
-    }
-    jmesh["primitives"] = std::move(prims);
-    set_morph_weights(jmesh, mesh);
+    jmesh["primitives"] = write_primitives(asset.meshes[m], source, m, old, doc, data, path);
+    set_morph_weights(jmesh, asset.meshes[m]);
   }
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// MSFT_lod: LOD meshes and the LOD nodes that show them (see lods.hpp for the layout).
+
+// Index of the material named `name` in a document built by build_document, added when missing.
+int material_by_name(OrderedJson& doc, const std::string& name) {
+  OrderedJson& materials = doc["materials"];
+  for (std::size_t i = 0; i < materials.size(); ++i) {
+    if (materials[i].value("name", std::string()) == name) return static_cast<int>(i);
+  }
+  materials.push_back({{"name", name}, {"pbrMetallicRoughness", {{"metallicFactor", 0.0}}}});
+  return static_cast<int>(materials.size() - 1);
+}
+
+// The primitives of a LOD mesh of an asset without a glTF source: one per non-empty slot, as build_document.
+OrderedJson write_built_primitives(const Mesh& mesh, std::size_t m, OrderedJson& doc, DataBuilder& data,
+                                   const std::filesystem::path& path) {
+  const std::vector<SlotGeometry> geometry = split_by_slot(mesh, m, path);
+  PrimitiveWriter writer(mesh, nullptr, m, data, path);
+  OrderedJson prims = OrderedJson::array();
+  for (std::size_t s = 0; s < geometry.size(); ++s) {
+    if (geometry[s].indices.empty()) continue;
+    const MaterialSlot* slot = s < mesh.materials.size() ? &mesh.materials[s] : nullptr;
+    const std::string name = slot && !slot->name.empty() ? slot->name : "default";
+    prims.push_back(writer.write(slot, geometry[s], nullptr, material_by_name(doc, name)));
+  }
+  if (prims.empty()) {
+    throw IoError(path, "LOD of mesh " + std::to_string(m) + " has no faces; a glTF mesh needs at least one primitive");
+  }
+  return prims;
+}
+
+// `json_mesh[m]`: the glTF mesh index showing asset mesh m (-1 when it has none, e.g. a mesh without faces).
+void add_lods(const Asset& asset, const LodChain& lods, const std::vector<int>& json_mesh, OrderedJson& doc,
+              DataBuilder& data, const std::filesystem::path& path) {
+  const GltfDocument* source = asset.gltf.get();
+  OrderedJson& meshes = doc["meshes"];
+  // lod_mesh[k][m]: glTF mesh index of LOD k+1 of asset mesh m.
+  std::vector<std::vector<int>> lod_mesh(lods.levels.size(), std::vector<int>(asset.meshes.size(), -1));
+  for (std::size_t k = 0; k < lods.levels.size(); ++k) {
+    for (std::size_t m = 0; m < asset.meshes.size(); ++m) {
+      if (json_mesh[m] < 0) continue;
+      const Mesh& lod = lods.levels[k][m];
+      const OrderedJson& base = meshes[static_cast<std::size_t>(json_mesh[m])];
+      OrderedJson jmesh = OrderedJson::object();
+      const std::string suffix = "_LOD" + std::to_string(k + 1);
+      if (base.contains("name") && base["name"].is_string()) jmesh["name"] = base["name"].get<std::string>() + suffix;
+      if (source) {
+        const OrderedJson& old = json_array(json_array(source->json, "meshes")[m], "primitives");
+        jmesh["primitives"] = write_primitives(lod, *source, m, old, doc, data, path);
+      } else {
+        jmesh["primitives"] = write_built_primitives(lod, m, doc, data, path);
+      }
+      if (base.contains("weights")) jmesh["weights"] = base["weights"];
+      set_morph_weights(jmesh, lod);
+      if (base.contains("extras") && !lod.morph_targets.empty()) jmesh["extras"] = base["extras"];
+      lod_mesh[k][m] = static_cast<int>(meshes.size());
+      meshes.push_back(std::move(jmesh));
+    }
+  }
+
+  std::vector<int> asset_mesh_of(meshes.size(), -1);
+  for (std::size_t m = 0; m < json_mesh.size(); ++m) {
+    if (json_mesh[m] >= 0) asset_mesh_of[static_cast<std::size_t>(json_mesh[m])] = static_cast<int>(m);
+  }
+  OrderedJson& nodes = doc["nodes"];
+  const std::size_t source_nodes = nodes.size();
+  for (std::size_t n = 0; n < source_nodes; ++n) {
+    const int jm = json_index(nodes[n], "mesh");
+    if (jm < 0 || static_cast<std::size_t>(jm) >= asset_mesh_of.size() || asset_mesh_of[jm] < 0) continue;
+    const auto m = static_cast<std::size_t>(asset_mesh_of[static_cast<std::size_t>(jm)]);
+    OrderedJson ids = OrderedJson::array();
+    for (std::size_t k = 0; k < lods.levels.size(); ++k) {
+      const Mesh& lod = lods.levels[k][m];
+      const OrderedJson& node = nodes[n];
+      // A LOD node replaces its node where it stands: same transform (it is nobody's child), no children.
+      OrderedJson lod_node = OrderedJson::object();
+      if (node.contains("name") && node["name"].is_string()) {
+        lod_node["name"] = node["name"].get<std::string>() + "_LOD" + std::to_string(k + 1);
+      }
+      for (const auto& [key, value] : node.items()) {
+        if (key == "matrix" || key == "rotation" || key == "scale" || key == "translation") lod_node[key] = value;
+      }
+      lod_node["mesh"] = lod_mesh[k][m];
+      // Skin and morph weights only where the LOD mesh still has them (the validator rejects a skin on a mesh
+      // without JOINTS_0, and weights whose count differs from the mesh's targets).
+      if (node.contains("skin") && lod.skin.size() == lod.vertex_count() && !lod.skin.empty()) {
+        lod_node["skin"] = node["skin"];
+      }
+      if (node.contains("weights") && node["weights"].is_array() &&
+          node["weights"].size() == lod.morph_targets.size() && !lod.morph_targets.empty()) {
+        lod_node["weights"] = node["weights"];
+      }
+      ids.push_back(nodes.size());
+      nodes.push_back(std::move(lod_node));
+    }
+    OrderedJson& node = nodes[n];
+    if (!node.contains("extensions") || !node["extensions"].is_object()) node["extensions"] = OrderedJson::object();
+    node["extensions"]["MSFT_lod"] = {{"ids", std::move(ids)}};
+    if (!node.contains("extras") || !node["extras"].is_object()) node["extras"] = OrderedJson::object();
+    node["extras"]["MSFT_screencoverage"] = lods.screen_coverage;
+  }
+
+  OrderedJson& used = doc["extensionsUsed"];
+  if (!used.is_array()) used = OrderedJson::array();
+  if (std::find(used.begin(), used.end(), OrderedJson("MSFT_lod")) == used.end()) used.push_back("MSFT_lod");
 }
 
 void put_u32(std::string& out, std::uint32_t v) {
@@ -837,9 +960,9 @@ bool same_folder(const std::filesystem::path& a, const std::filesystem::path& b)
   return !ec1 && !ec2 && ca == cb;
 }
 
-}  // namespace
-
-void write_gltf(const Asset& asset, const std::filesystem::path& path, const SaveOptions& options) {
+// write_gltf, and save_gltf_lods when `lods` is set.
+void write_gltf_document(const Asset& asset, const LodChain* lods, const std::filesystem::path& path,
+                         const SaveOptions& options) {
   const bool glb = format_from_path(path) == Format::glb;
   const GltfDocument* source = asset.gltf.get();
   if (source && asset.meshes.size() != source->converted.size()) {
@@ -856,11 +979,14 @@ void write_gltf(const Asset& asset, const std::filesystem::path& path, const Sav
   IndexAllocator view_index(source_views, freed.views);
   DataBuilder data(accessor_index, view_index);
 
+  std::vector<int> json_mesh;
   if (source) {
     patch_meshes(asset, *source, doc, data, path);
+    for (std::size_t m = 0; m < asset.meshes.size(); ++m) json_mesh.push_back(static_cast<int>(m));
   } else {
-    doc = build_document(asset, data, path);
+    doc = build_document(asset, data, path, json_mesh);
   }
+  if (lods) add_lods(asset, *lods, json_mesh, doc, data, path);
 
   // Accessors: kept ones in place, new ones at their allocated indices, placeholders in unused holes.
   const OrderedJson old_accessors = json_array(doc, "accessors");
@@ -975,6 +1101,38 @@ void write_gltf(const Asset& asset, const std::filesystem::path& path, const Sav
     out += bin;
   }
   write_file_atomic(path, out);
+}
+
+}  // namespace
+
+void write_gltf(const Asset& asset, const std::filesystem::path& path, const SaveOptions& options) {
+  write_gltf_document(asset, nullptr, path, options);
+}
+
+void save_gltf_lods(const Asset& asset, const LodChain& lods, const std::filesystem::path& path,
+                    const SaveOptions& options) {
+  const Format format = format_from_path(path);
+  if (format != Format::gltf && format != Format::glb) {
+    throw IoError(path, "MSFT_lod output needs a .gltf or .glb file name");
+  }
+  for (std::size_t k = 0; k < lods.levels.size(); ++k) {
+    if (lods.levels[k].size() != asset.meshes.size()) {
+      throw IoError(path, "LOD " + std::to_string(k + 1) + " has " + std::to_string(lods.levels[k].size()) +
+                              " meshes but the asset has " + std::to_string(asset.meshes.size()));
+    }
+  }
+  if (lods.screen_coverage.size() != lods.levels.size() + 1) {
+    throw IoError(path, "MSFT_screencoverage needs " + std::to_string(lods.levels.size() + 1) +
+                            " values (one per level including LOD0), got " +
+                            std::to_string(lods.screen_coverage.size()));
+  }
+  for (std::size_t k = 0; k < lods.screen_coverage.size(); ++k) {
+    const double c = lods.screen_coverage[k];
+    if (!(c >= 0.0 && c <= 1.0) || (k > 0 && c > lods.screen_coverage[k - 1])) {
+      throw IoError(path, "MSFT_screencoverage must be non-increasing values in [0, 1]");
+    }
+  }
+  write_gltf_document(asset, &lods, path, options);
 }
 
 }  // namespace lodforge::io

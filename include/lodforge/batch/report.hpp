@@ -1,0 +1,43 @@
+// report.json: what a batch run did, one record per asset and LOD (issue 5, "Report"). Shape:
+//
+//   {"lodforge_version": str, "config_file": str, "effective_config": {...}, "jobs": int, "shard": "K/N" | null,
+//    "summary": {"assets", "succeeded", "failed", "skipped", "cache_hits", "lods", "input_triangles",
+//                "output_triangles": int, "seconds": float},
+//    "assets": [{"path", "class": str | null, "status": "ok" | "failed" | "skipped", "error": str | null,
+//                "cache_hit": bool, "seconds": float, "input": {"triangles", "vertices": int, "diagonal": float},
+//                "outputs": [str], "lods": [{"level", "from", "target": {"kind", "value"}, "target_triangles",
+//                "triangles", "vertices", "ratio", "error_bound_abs", "error_bound_rel", "mean_rel", "rms_rel",
+//                "hausdorff_rel", "normal_deviation_mean_deg", "stop_reason", "seconds", "screen_coverage"}]}]}
+//
+// Assets are sorted by path. "seconds" (summary, asset, LOD) are the only fields that differ between two runs
+// of the same library, config and cache state, whatever --jobs; the report render (report_html.hpp) and
+// `lodforge merge-reports` read this document.
+#pragma once
+
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+namespace lodforge::batch {
+
+// The summary of an asset list (counts and sums as above); `seconds` is the run's wall time.
+nlohmann::json report_summary(const nlohmann::json& assets, double seconds);
+
+// Every way `report` differs from the shape above, one line each ("assets[3].lods[0].ratio: expected a
+// number"); empty = well-formed.
+std::vector<std::string> check_report(const nlohmann::json& report);
+
+// The report with every "seconds" field removed: what two runs of the same work must agree on.
+nlohmann::json without_timings(nlohmann::json report);
+
+// One report from the reports of the shards of a run: assets merged and sorted by path, summary recomputed
+// (seconds = the slowest shard), "shard" null. Throws std::invalid_argument when the reports are malformed, come
+// from different configs or lodforge versions, or list an asset twice.
+nlohmann::json merge_reports(const std::vector<nlohmann::json>& reports);
+
+// Writes report.json (indented) and the HTML page rendered from it, each atomically. Throws io::IoError.
+void write_report(const nlohmann::json& report, const std::filesystem::path& json_path,
+                  const std::filesystem::path& html_path);
+
+}  // namespace lodforge::batch

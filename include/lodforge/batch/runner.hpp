@@ -1,0 +1,104 @@
+// The batch LOD processor (issue 5, "Pipeline"): every asset of a library through one tbb::flow::graph.
+//
+//   const BatchConfig config = load_config("configs/default.json");
+//   const RunResult r = run_batch(config, {.config_file = "configs/default.json", .input_dir = "library",
+//                                          .output_dir = "out", .jobs = 8});
+//   // r.report is report.json; OUT_DIR holds the LODs, report.json, report.html and .lodforge-cache/
+//
+// Per asset (DESIGN.md "Data flow"): fingerprint + cache lookup -> load -> analyse -> LOD chain -> post-process
+// -> measure -> write -> report row. The stages are nodes of one flow graph and many assets are in flight at
+// once; the simplifier and eval run their own parallel loops inside an asset's node, in the same thread budget.
+//
+// Guarantees:
+//   - Output bytes (meshes, report.json without its "seconds" fields) are identical for any `jobs`: every stage
+//     is deterministic and nothing depends on which asset finishes first.
+//   - Memory: an asset is admitted only while the estimated footprints of the assets in flight (file size, plus
+//     declared buffer sizes for .gltf, x kFootprintPerFileByte) fit in `memory_limit_bytes`; one asset larger
+//     than the whole budget runs alone.
+//   - Failure isolation: any exception inside a stage fails that asset only (recorded with its message).
+//   - Incremental: see cache.hpp. Outputs are staged and renamed into place, then the cache entry is written.
+//   - Duplicate meshes (same content and class) are simplified once per run; the copies reuse the result.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lodforge/batch/config.hpp"
+#include "lodforge/batch/shard.hpp"
+
+namespace lodforge::batch {
+
+// Part of every cache key: bump it whenever a change to lodforge makes the same input and config give
+// different output bytes (simplifier, post-process, writers), so stale LODs are rebuilt.
+inline constexpr const char* kAlgorithmVersion = "lodforge-0.1.0/batch-1";
+inline constexpr const char* kLodforgeVersion = "0.1.0";
+
+// Estimated peak memory of one asset in flight per byte of its file: the loaded Mesh (positions, wedges,
+// corners), the simplifier's working copy and queues, and the LOD chain come to roughly 10-30x a binary
+// file's size; text formats are larger on disk, so one factor errs on the safe side for both.
+inline constexpr std::uint64_t kFootprintPerFileByte = 24;
+inline constexpr std::uint64_t kFootprintOverhead = 1u << 20;  // per asset: buffers, report record, staging
+
+// Half of the physical memory: leaves room for the OS file cache the writes go through.
+std::uint64_t default_memory_limit();
+// "4G", "512M", "1.5G", "100000" (bytes; K/M/G/T are powers of 1024). Throws std::invalid_argument.
+std::uint64_t parse_byte_size(std::string_view text);
+
+// What the observer hears after each asset (serially, in completion order).
+struct AssetDone {
+  const nlohmann::json& record;  // the asset's report record
+  std::size_t done = 0, total = 0;
+  std::uint64_t input_triangles_done = 0;  // over assets processed (not cache hits) so far
+  double elapsed_seconds = 0;
+};
+
+struct RunOptions {
+  std::filesystem::path config_file{};  // for the report only
+  std::filesystem::path input_dir{};
+  std::filesystem::path output_dir{};
+  unsigned jobs = 0;  // threads for the whole run (graph and the simplifier inside it); 0 = all cores
+  std::optional<Shard> shard{};
+  bool force = false;                    // ignore the cache (still writes it)
+  std::uint64_t memory_limit_bytes = 0;  // 0 = default_memory_limit()
+  bool write_report = true;              // report.json + report.html in output_dir (report.shard-K-of-N.* when sharded)
+  std::function<void(const AssetDone&)> on_asset_done{};  // progress observer; must not throw
+  // Stops admitting new assets once set (Ctrl-C); assets in flight finish, the rest are reported "skipped".
+  const std::atomic<bool>* cancel = nullptr;
+  // Testing aid: admit at most this many assets (0 = all), as if the run were stopped there.
+  std::size_t stop_after = 0;
+};
+
+// Seconds spent per stage, summed over assets (cache hits count only their lookup).
+struct StageSeconds {
+  double fingerprint = 0, load = 0, analyse = 0, lods = 0, post_process = 0, measure = 0, write = 0;
+};
+
+struct RunResult {
+  nlohmann::json report;  // the report.json document
+  std::size_t succeeded = 0, failed = 0, skipped = 0, cache_hits = 0;
+  std::vector<std::string> failures;  // "path: error", sorted by path
+  StageSeconds stages;
+  std::uint64_t input_triangles = 0;  // of the assets processed (not cache hits)
+  double seconds = 0;
+  bool cancelled = false;
+  std::filesystem::path report_path;  // where report.json went (empty if not written)
+};
+
+// The supported files under `input_dir`, as sorted '/'-separated relative paths. Throws io::IoError when the
+// folder cannot be read.
+std::vector<std::string> scan_library(const std::filesystem::path& input_dir);
+
+// Throws io::IoError when the input folder cannot be read or the output folder cannot be created; everything
+// that goes wrong with one asset is recorded in its report record instead.
+RunResult run_batch(const BatchConfig& config, const RunOptions& options);
+
+// Output names: "props/crate.obj" LOD 2 -> "props/crate_LOD2.obj".
+std::string lod_file_name(const std::filesystem::path& relative_path, std::size_t level);
+
+}  // namespace lodforge::batch

@@ -1,0 +1,891 @@
+// The batch runner: a oneTBB flow graph over the assets of a library (DESIGN.md "Data flow", issue 5).
+//
+//   admission ─► fingerprint ─► load ─► analyse ─► lods ─► post_process ─► measure ─► write ─► report (serial)
+//       ▲                                                                                        │
+//       └──────────────────────── the finished asset's memory goes back to the budget ──────────┘
+//
+// Every stage is a function_node over a shared Job. A stage that throws marks its Job finished (failed) and
+// the later stages pass it through untouched, so one bad asset never stops the graph. Admission is a small
+// gate in front of the graph, not a limiter_node: limiter_node counts messages, while the budget here is in
+// bytes (an asset's estimated footprint), and one oversized asset must still be able to run alone. The gate is
+// opened from the serial report node each time an asset finishes, so no thread ever blocks waiting for memory.
+//
+// Determinism: each asset's outputs depend only on its file, its class and the config; the simplifier and eval
+// give identical results for any thread count; records are collected by library index, not completion order.
+#include "lodforge/batch/runner.hpp"
+
+#include <tbb/collaborative_call_once.h>
+#include <tbb/flow_graph.h>
+#include <tbb/global_control.h>
+#include <tbb/info.h>
+#include <tbb/task_arena.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <bit>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <deque>
+#include <limits>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <set>
+
+#include "lodforge/batch/cache.hpp"
+#include "lodforge/batch/post_process.hpp"
+#include "lodforge/batch/report.hpp"
+#include "lodforge/core/validate.hpp"
+#include "lodforge/eval/eval.hpp"
+#include "lodforge/io/asset.hpp"
+#include "lodforge/io/file.hpp"
+#include "lodforge/io/lods.hpp"
+#include "lodforge/simplify/simplify.hpp"
+
+namespace lodforge::batch {
+namespace {
+
+namespace fs = std::filesystem;
+using Json = nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+// Meshes below this many triangles are simplified and measured on one thread: their whole chain takes a few
+// milliseconds, less than waking a team of threads, and the graph keeps the other cores busy with other assets.
+constexpr std::size_t kParallelTriangles = 20000;
+// Eval samples per direction: 2 per triangle of the larger mesh, within [2000, 100000]. Far below eval's own
+// default (which is made for accuracy studies): the report needs the error to a few per cent, and measuring
+// must not cost more than simplifying.
+constexpr std::size_t kEvalSamplesPerTriangle = 1, kEvalSamplesMin = 500, kEvalSamplesMax = 50000;
+// Screen-coverage hints for LODs whose target is not a screen size: the coverage at which the LOD's measured
+// Hausdorff error is one pixel on a 1080-pixel-tall screen (the projection stated in config.hpp, ScreenSize).
+constexpr double kCoverageScreenPx = 1080.0, kCoverageErrorPx = 1.0;
+
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// JSON cannot hold inf/NaN (nlohmann writes null); the report's numbers stay numbers.
+double finite(double x) {
+  if (std::isnan(x)) return 0.0;
+  if (std::isinf(x)) return x > 0 ? std::numeric_limits<double>::max() : std::numeric_limits<double>::lowest();
+  return x;
+}
+
+// ---- per-mesh LOD chains, shared by duplicates ----------------------------------------------------------------
+
+struct MeshLod {
+  Mesh mesh;
+  double error_bound_abs = 0;  // against the source: accumulated along "previous" links
+  StopReason stop = StopReason::target_reached;
+  double seconds = 0;
+};
+using MeshChain = std::vector<MeshLod>;
+
+std::size_t mesh_bytes(const Mesh& m) {
+  return m.positions.size() * 12 + m.wedge_count() * 48 + m.corner_count() * 4 + m.face_count() * 12;
+}
+
+// Duplicate meshes (same content, class and asset context) share one chain. The first asset to need a chain
+// builds it inside tbb::collaborative_call_once, so a duplicate arriving meanwhile joins that work instead of
+// blocking a thread or building it again. Finished chains are kept while they fit `capacity_bytes` (oldest
+// evicted first), because a library can hold many more distinct meshes than memory.
+class ChainTable {
+ public:
+  explicit ChainTable(std::size_t capacity_bytes) : capacity_(capacity_bytes) {}
+
+  std::shared_ptr<const MeshChain> get(const std::string& key, const std::function<MeshChain()>& build) {
+    std::shared_ptr<Slot> slot;
+    {
+      std::lock_guard lock(mutex_);
+      auto& s = slots_[key];
+      if (!s) s = std::make_shared<Slot>();
+      slot = s;
+    }
+    bool built = false;
+    tbb::collaborative_call_once(slot->flag, [&] {
+      slot->chain = std::make_shared<const MeshChain>(build());
+      built = true;
+    });
+    if (built) retain(key, *slot->chain);
+    return slot->chain;
+  }
+
+ private:
+  struct Slot {
+    tbb::collaborative_once_flag flag;
+    std::shared_ptr<const MeshChain> chain;
+  };
+
+  void retain(const std::string& key, const MeshChain& chain) {
+    std::size_t bytes = 0;
+    for (const MeshLod& l : chain) bytes += mesh_bytes(l.mesh);
+    std::lock_guard lock(mutex_);
+    order_.emplace_back(key, bytes);
+    held_ += bytes;
+    while (held_ > capacity_ && order_.size() > 1) {
+      slots_.erase(order_.front().first);  // holders keep their shared_ptr; later copies rebuild
+      held_ -= order_.front().second;
+      order_.pop_front();
+    }
+  }
+
+  std::mutex mutex_;
+  std::map<std::string, std::shared_ptr<Slot>> slots_;
+  std::deque<std::pair<std::string, std::size_t>> order_;
+  std::size_t held_ = 0, capacity_;
+};
+
+// Content hash of everything in a Mesh except its name (two copies of a mesh under different names are
+// duplicates; the name is put back on the LODs).
+std::string mesh_content_hash(const Mesh& m) {
+  Hasher h;
+  h.array(m.positions).array(m.skin).array(m.priority).array(m.wedge_vertex).array(m.normals).array(m.tangents);
+  h.u64(m.uvs.size());
+  for (const auto& s : m.uvs) h.array(s);
+  h.u64(m.colors.size());
+  for (const auto& s : m.colors) h.array(s);
+  h.array(m.color_components);
+  h.u64(m.custom.size());
+  for (const CustomAttribute& c : m.custom) {
+    h.bytes(c.name)
+        .u64(static_cast<std::uint64_t>(c.components))
+        .u64(static_cast<std::uint64_t>(c.format.component_type));
+    h.u64(c.format.normalized).array(c.values);
+  }
+  h.u64(m.morph_targets.size());
+  for (const MorphTarget& t : m.morph_targets) {
+    h.bytes(t.name).array(t.position_deltas).array(t.normal_deltas).array(t.tangent_deltas);
+  }
+  h.array(m.morph_default_weights).array(m.face_offsets).array(m.corner_wedge).array(m.face_material);
+  h.array(m.face_group);
+  h.u64(m.materials.size());
+  for (const MaterialSlot& s : m.materials) {
+    h.bytes(s.name)
+        .u64(static_cast<std::uint64_t>(s.gltf_material))
+        .u64(static_cast<std::uint64_t>(s.source_primitive));
+    h.u64(s.has_normals).u64(s.has_tangents).u64(static_cast<std::uint64_t>(s.uv_sets));
+    h.u64(static_cast<std::uint64_t>(s.color_sets)).u64(s.has_custom).u64(s.has_morphs);
+  }
+  h.u64(m.groups.size());
+  for (const std::string& g : m.groups) h.bytes(g);
+  for (const auto& [semantic, format] : m.formats) {
+    h.bytes(semantic).u64(static_cast<std::uint64_t>(format.component_type)).u64(format.normalized);
+  }
+  return h.hex();
+}
+
+unsigned threads_for(std::size_t triangles, unsigned jobs) {
+  return triangles < kParallelTriangles ? 1 : jobs;
+}
+
+// One mesh's chain. Ratios are of the mesh's own triangles; a triangle-count target is the asset's, shared
+// among its meshes by their triangle counts; error targets are relative to the asset's diagonal.
+MeshChain build_chain(const Mesh& source, const AssetClass& cls, std::size_t asset_triangles, double asset_diagonal,
+                      unsigned jobs) {
+  MeshChain chain;
+  const std::size_t source_triangles = source.triangle_count();
+  for (std::size_t k = 0; k < cls.lods.size(); ++k) {
+    LodSpec spec = cls.lods[k];
+    const bool chained = spec.from == LodFrom::previous && k > 0;
+    const Mesh& from = chained ? chain[k - 1].mesh : source;
+    const double spent = chained ? chain[k - 1].error_bound_abs : 0.0;
+    if (spec.target.kind == TargetKind::triangles && asset_triangles > 0) {
+      const double share = static_cast<double>(spec.target.triangles) * static_cast<double>(source_triangles) /
+                           static_cast<double>(asset_triangles);
+      spec.target.triangles = std::max<std::size_t>(1, static_cast<std::size_t>(std::llround(share)));
+    }
+    SimplifyOptions options = simplify_options_for(spec, LodInput{.source_triangles = source_triangles,
+                                                                  .source_diagonal = asset_diagonal,
+                                                                  .accumulated_error_abs = spent});
+    options.threads = threads_for(from.triangle_count(), jobs);
+    const auto t0 = Clock::now();
+    SimplifyResult r = simplify(from, options);
+    MeshLod lod;
+    lod.mesh = std::move(r.mesh);
+    lod.mesh.name = source.name;
+    lod.error_bound_abs = spent + r.error_bound_abs;
+    lod.stop = r.stop_reason;
+    lod.seconds = seconds_since(t0);
+    chain.push_back(std::move(lod));
+  }
+  return chain;
+}
+
+// ---- jobs and admission ---------------------------------------------------------------------------------------
+
+double work_seconds(const StageSeconds& s) {
+  return s.fingerprint + s.load + s.analyse + s.lods + s.post_process + s.measure + s.write;
+}
+
+struct Job {
+  std::size_t index = 0;
+  std::string path;  // relative, '/'-separated
+  fs::path file;
+  const AssetClass* cls = nullptr;
+  std::uint64_t footprint = 0;
+
+  bool finished = false;  // failed or cache hit: later stages pass the job through
+  Json record;
+  std::string key;
+  StageSeconds stages;
+  std::uint64_t processed_triangles = 0;  // input triangles when the asset was really processed
+
+  io::Asset asset;
+  std::size_t triangles = 0, vertices = 0;
+  double diagonal = 0;
+  std::vector<std::shared_ptr<const MeshChain>> chains;  // per asset mesh
+  std::vector<Mesh> sources;                             // per asset mesh, post-processed for output
+  std::vector<std::vector<Mesh>> levels;                 // [level][mesh], post-processed
+  std::vector<double> coverage;                          // MSFT_screencoverage, levels + 1 values
+};
+using JobPtr = std::shared_ptr<Job>;
+
+struct Pending {
+  std::size_t index = 0;
+  std::string path;
+  const AssetClass* cls = nullptr;
+  std::uint64_t footprint = 0;
+};
+
+// Which assets may start: in library order, while the footprints in flight fit the budget.
+class Admission {
+ public:
+  Admission(std::vector<Pending> pending, std::uint64_t budget, std::size_t max_in_flight,
+            const std::atomic<bool>* cancel, std::size_t stop_after)
+      : pending_(std::move(pending)),
+        budget_(budget),
+        max_in_flight_(max_in_flight),
+        cancel_(cancel),
+        stop_after_(stop_after) {}
+
+  std::vector<Pending> take() {
+    std::lock_guard lock(mutex_);
+    std::vector<Pending> out;
+    while (next_ < pending_.size()) {
+      if ((cancel_ && cancel_->load()) || (stop_after_ && admitted_ >= stop_after_)) break;
+      const std::uint64_t fp = pending_[next_].footprint;
+      if (in_flight_ > 0 && (in_flight_ >= max_in_flight_ || reserved_ + fp > budget_)) break;
+      reserved_ += fp;
+      ++in_flight_;
+      ++admitted_;
+      out.push_back(pending_[next_++]);
+    }
+    return out;
+  }
+
+  void release(std::uint64_t footprint) {
+    std::lock_guard lock(mutex_);
+    reserved_ -= footprint;
+    --in_flight_;
+  }
+
+  // Assets never admitted (the run was stopped), in library order.
+  std::vector<Pending> left() const {
+    std::lock_guard lock(mutex_);
+    return {pending_.begin() + static_cast<std::ptrdiff_t>(next_), pending_.end()};
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  std::vector<Pending> pending_;
+  std::size_t next_ = 0, in_flight_ = 0, admitted_ = 0;
+  std::uint64_t reserved_ = 0;
+  std::uint64_t budget_;
+  std::size_t max_in_flight_;
+  const std::atomic<bool>* cancel_;
+  std::size_t stop_after_;
+};
+
+// ---- report records -------------------------------------------------------------------------------------------
+
+Json base_record(const std::string& path, const AssetClass* cls) {
+  return {{"path", path},
+          {"class", cls ? Json(cls->name) : Json(nullptr)},
+          {"status", "ok"},
+          {"error", nullptr},
+          {"cache_hit", false},
+          {"seconds", 0.0},
+          {"input", {{"triangles", 0}, {"vertices", 0}, {"diagonal", 0.0}}},
+          {"outputs", Json::array()},
+          {"lods", Json::array()}};
+}
+
+Json target_json(const LodTarget& t) {
+  switch (t.kind) {
+    case TargetKind::ratio:
+      return {{"kind", "ratio"}, {"value", t.ratio}};
+    case TargetKind::triangles:
+      return {{"kind", "triangles"}, {"value", static_cast<double>(t.triangles)}};
+    case TargetKind::max_error_rel:
+    case TargetKind::max_error_abs:
+      return {{"kind", "max_error"}, {"value", t.max_error}};
+    case TargetKind::screen_size:
+      return {{"kind", "screen_size"}, {"value", t.screen.pixels}};
+  }
+  return nullptr;
+}
+
+Json target_triangles_json(const LodTarget& t, std::size_t source_triangles) {
+  if (t.kind == TargetKind::ratio) {
+    return std::max<std::size_t>(1, static_cast<std::size_t>(std::llround(t.ratio * double(source_triangles))));
+  }
+  if (t.kind == TargetKind::triangles) return t.triangles;
+  return nullptr;
+}
+
+// All meshes of an asset as one surface (positions and faces only), for eval: the report measures the asset.
+Mesh merged_surface(const std::vector<const Mesh*>& meshes) {
+  Mesh all;
+  for (const Mesh* m : meshes) {
+    const auto vbase = static_cast<std::uint32_t>(all.positions.size());
+    const auto wbase = static_cast<std::uint32_t>(all.wedge_vertex.size());
+    all.positions.insert(all.positions.end(), m->positions.begin(), m->positions.end());
+    for (const std::uint32_t v : m->wedge_vertex) all.wedge_vertex.push_back(vbase + v);
+    const auto cbase = static_cast<std::uint32_t>(all.corner_wedge.size());
+    for (const std::uint32_t w : m->corner_wedge) all.corner_wedge.push_back(wbase + w);
+    for (std::size_t f = 1; f < m->face_offsets.size(); ++f) all.face_offsets.push_back(cbase + m->face_offsets[f]);
+  }
+  all.face_material.assign(all.face_count(), 0);
+  all.materials.push_back({});
+  return all;
+}
+
+io::Asset with_meshes(const io::Asset& base, std::vector<Mesh> meshes) {
+  io::Asset a;
+  a.source = base.source;
+  a.format = base.format;
+  a.gltf = base.gltf;
+  a.obj_mtllibs = base.obj_mtllibs;
+  a.binary = base.binary;
+  a.meshes = std::move(meshes);
+  return a;
+}
+
+bool is_gltf(io::Format f) {
+  return f == io::Format::gltf || f == io::Format::glb;
+}
+
+// ---- the pipeline ---------------------------------------------------------------------------------------------
+
+class Pipeline {
+ public:
+  Pipeline(const BatchConfig& config, const RunOptions& options, const Cache& cache, unsigned jobs,
+           std::uint64_t memory_limit)
+      : config_(config), options_(options), cache_(cache), jobs_(jobs), chains_(memory_limit / 8) {
+    for (const AssetClass& cls : config.classes) class_json_[&cls] = effective_class_json(config, cls);
+  }
+
+  void fingerprint(Job& job) {
+    job.key = cache_key(input_fingerprint(job.file), class_json_.at(job.cls), kAlgorithmVersion);
+    if (options_.force) return;
+    if (std::optional<Json> record = cache_.lookup(job.path, job.key)) {
+      job.record = std::move(*record);
+      job.record["cache_hit"] = true;
+      job.finished = true;
+    }
+  }
+
+  void load(Job& job) { job.asset = io::load_asset(job.file); }
+
+  void analyse(Job& job) {
+    Bounds3 bounds;
+    for (std::size_t m = 0; m < job.asset.meshes.size(); ++m) {
+      const Mesh& mesh = job.asset.meshes[m];
+      const ValidationReport v = validate(mesh);
+      // What the simplifier cannot survive is an error here; other findings (non-manifold, degenerate faces)
+      // are what the simplifier is built to cope with.
+      if (v.out_of_range_indices || v.nonfinite_positions || v.attribute_size_errors) {
+        std::string why;
+        for (const std::string& msg : v.messages) why += (why.empty() ? "" : "; ") + msg;
+        throw std::runtime_error("mesh " + std::to_string(m) + " is invalid: " + why);
+      }
+      job.triangles += mesh.triangle_count();
+      job.vertices += mesh.vertex_count();
+      const Bounds3 b = compute_bounds(mesh);
+      if (!b.empty()) {
+        bounds.add(b.min);
+        bounds.add(b.max);
+      }
+    }
+    if (job.triangles == 0) throw std::runtime_error("the asset has no triangles to simplify");
+    job.diagonal = bounds.diagonal();
+    job.record["input"] = {
+        {"triangles", job.triangles}, {"vertices", job.vertices}, {"diagonal", finite(job.diagonal)}};
+  }
+
+  void lods(Job& job) {
+    for (const Mesh& mesh : job.asset.meshes) {
+      if (mesh.triangle_count() == 0) {  // e.g. a glTF mesh of lines only: its LODs are itself
+        auto chain = std::make_shared<MeshChain>();
+        for (std::size_t k = 0; k < job.cls->lods.size(); ++k) chain->push_back({.mesh = mesh});
+        job.chains.push_back(std::move(chain));
+        continue;
+      }
+      Hasher key;
+      key.bytes(mesh_content_hash(mesh)).bytes(job.cls->name).u64(job.triangles);
+      key.u64(std::bit_cast<std::uint64_t>(job.diagonal));
+      job.chains.push_back(
+          chains_.get(key.hex(), [&] { return build_chain(mesh, *job.cls, job.triangles, job.diagonal, jobs_); }));
+    }
+  }
+
+  void post_process(Job& job) {
+    const bool optimize = config_.output.post_process;
+    const std::size_t levels = job.cls->lods.size();
+    job.levels.assign(levels, {});
+    for (std::size_t k = 0; k < levels; ++k) {
+      for (const auto& chain : job.chains) {
+        const Mesh& lod = (*chain)[k].mesh;
+        job.levels[k].push_back(optimize ? optimize_for_gpu(lod) : lod);
+      }
+    }
+    // LOD0 is written too (MSFT_lod files hold it; write_source_lod0 copies it), so it gets the same treatment.
+    if (optimize) {
+      for (const Mesh& mesh : job.asset.meshes) job.sources.push_back(optimize_for_gpu(mesh));
+    } else {
+      job.sources = job.asset.meshes;
+    }
+  }
+
+  void measure(Job& job) {
+    std::vector<const Mesh*> source_ptrs;
+    for (const Mesh& m : job.sources) source_ptrs.push_back(&m);
+    const Mesh source = merged_surface(source_ptrs);
+    Json lods = Json::array();
+    double coverage_above = 1.0;
+    job.coverage.clear();
+    for (std::size_t k = 0; k < job.levels.size(); ++k) {
+      const LodSpec& spec = job.cls->lods[k];
+      std::vector<const Mesh*> lod_ptrs;
+      std::size_t triangles = 0, vertices = 0;
+      double bound = 0, seconds = 0;
+      std::set<std::string> stops;
+      for (std::size_t m = 0; m < job.levels[k].size(); ++m) {
+        lod_ptrs.push_back(&job.levels[k][m]);
+        triangles += job.levels[k][m].triangle_count();
+        vertices += job.levels[k][m].vertex_count();
+        const MeshLod& built = (*job.chains[m])[k];
+        bound = std::max(bound, built.error_bound_abs);
+        seconds += built.seconds;
+        if (job.asset.meshes[m].triangle_count() > 0) stops.insert(stop_reason_name(built.stop));
+      }
+      std::string stop;
+      for (const std::string& s : stops) stop += (stop.empty() ? "" : ",") + s;
+
+      const Mesh lod = merged_surface(lod_ptrs);
+      const std::size_t larger = std::max(source.triangle_count(), lod.triangle_count());
+      EvalOptions eval;
+      eval.samples = std::clamp(kEvalSamplesPerTriangle * larger, kEvalSamplesMin, kEvalSamplesMax);
+      eval.threads = threads_for(larger, jobs_);
+      const EvalResult e = evaluate(source, lod, eval);
+
+      // Where this LOD switches in (share of screen height): the config's own screen size, else where its
+      // measured error is one pixel; never above the previous LOD's, so the chain is a valid MSFT_lod series.
+      double coverage = spec.target.kind == TargetKind::screen_size
+                            ? spec.target.screen.screen_coverage()
+                            : kCoverageErrorPx / (kCoverageScreenPx * std::max(e.hausdorff_rel(), 1e-12));
+      coverage = std::clamp(coverage, 0.0, coverage_above);
+      coverage_above = coverage;
+      job.coverage.push_back(coverage);
+
+      lods.push_back({{"level", k + 1},
+                      {"from", spec.from == LodFrom::previous ? "previous" : "source"},
+                      {"target", target_json(spec.target)},
+                      {"target_triangles", target_triangles_json(spec.target, job.triangles)},
+                      {"triangles", triangles},
+                      {"vertices", vertices},
+                      {"ratio", double(triangles) / double(job.triangles)},
+                      {"error_bound_abs", finite(bound)},
+                      {"error_bound_rel", finite(job.diagonal > 0 ? bound / job.diagonal : 0.0)},
+                      {"mean_rel", finite(e.mean_rel())},
+                      {"rms_rel", finite(e.rms_rel())},
+                      {"hausdorff_rel", finite(e.hausdorff_rel())},
+                      {"normal_deviation_mean_deg", finite(e.normal_deviation_mean_deg)},
+                      {"stop_reason", stop},
+                      {"seconds", seconds},
+                      {"screen_coverage", coverage}});
+    }
+    job.coverage.push_back(0.0);  // the coarsest LOD is never culled
+    job.record["lods"] = std::move(lods);
+  }
+
+  void write(Job& job) {
+    const fs::path staging = cache_.staging_for(job.path);
+    try {
+      write_outputs(job, staging);
+      job.record["outputs"] = cache_.publish(staging, fs::path(job.path).parent_path());
+    } catch (...) {
+      std::error_code ec;
+      fs::remove_all(staging, ec);
+      throw;
+    }
+    job.record["seconds"] = work_seconds(job.stages);  // the write itself is added when the asset is reported
+    cache_.store(job.path, job.key, job.record["outputs"].get<std::vector<std::string>>(), job.record);
+    job.processed_triangles = job.triangles;
+  }
+
+ private:
+  void write_outputs(Job& job, const fs::path& staging) {
+    const fs::path name = fs::path(job.path).filename();
+    const io::Format format = job.asset.format;
+    const GltfLods mode = config_.output.gltf_lods;
+    if (is_gltf(format) && mode != GltfLods::files) {
+      io::LodChain chain{.levels = job.levels, .screen_coverage = job.coverage};
+      io::save_gltf_lods(with_meshes(job.asset, job.sources), chain, staging / name);
+    }
+    if (!is_gltf(format) || mode != GltfLods::msft_lod) {
+      for (std::size_t k = 0; k < job.levels.size(); ++k) {
+        io::save_asset(with_meshes(job.asset, job.levels[k]), staging / lod_file_name(name, k + 1));
+      }
+    }
+    if (config_.output.write_source_lod0) {
+      io::save_asset(with_meshes(job.asset, job.sources), staging / lod_file_name(name, 0));
+    }
+    if (format == io::Format::obj) copy_mtllibs(job, staging);
+  }
+
+  // OBJ material libraries go next to the LODs that name them (their textures are not followed).
+  static void copy_mtllibs(const Job& job, const fs::path& staging) {
+    const fs::path folder = job.file.parent_path();
+    for (const std::string& line : job.asset.obj_mtllibs) {
+      try {
+        const fs::path source = io::resolve_inside(job.file, folder, line);
+        std::error_code ec;
+        if (!fs::is_regular_file(source, ec)) continue;
+        const fs::path dest = staging / fs::relative(source, folder);
+        fs::create_directories(dest.parent_path(), ec);
+        io::write_file_atomic(dest, io::read_file(source));
+      } catch (const io::IoError&) {
+        // A library outside the asset's folder (or several names on one line) is not copied; the LOD files
+        // still name it as the source did.
+      }
+    }
+  }
+
+  const BatchConfig& config_;
+  const RunOptions& options_;
+  const Cache& cache_;
+  unsigned jobs_;
+  ChainTable chains_;
+  std::map<const AssetClass*, Json> class_json_;
+};
+
+void fail(Job& job, const std::string& error) {
+  job.record["status"] = "failed";
+  job.record["error"] = error.empty() ? "unknown error" : error;
+  job.record["outputs"] = Json::array();
+  job.record["lods"] = Json::array();
+  job.finished = true;
+}
+
+// Wraps a stage: skips finished jobs, times the stage, and turns any exception into the asset's failure.
+template <class F>
+auto stage(F body, double StageSeconds::*field) {
+  return [body, field](JobPtr job) -> JobPtr {
+    if (job->finished) return job;
+    const auto t0 = Clock::now();
+    try {
+      body(*job);
+    } catch (const std::exception& e) {
+      fail(*job, e.what());
+    } catch (...) {
+      fail(*job, "unknown error");
+    }
+    job->stages.*field += seconds_since(t0);
+    return job;
+  };
+}
+
+bool supported(const fs::path& p) {
+  try {
+    io::format_from_path(p);
+    return true;
+  } catch (const io::IoError&) {
+    return false;
+  }
+}
+
+// Bytes of the asset's mesh data on disk: the file, plus for a .gltf the buffers it declares (its JSON is small;
+// the geometry is in the .bin files). Read only from the JSON's byteLength fields, so the scan stays cheap.
+std::uint64_t asset_bytes(const fs::path& file) {
+  std::error_code ec;
+  std::uint64_t bytes = fs::file_size(file, ec);
+  if (ec) return 0;
+  if (io::format_from_path(file) != io::Format::gltf) return bytes;
+  try {
+    const Json doc = Json::parse(io::read_file(file), nullptr, false);
+    if (doc.is_object() && doc.contains("buffers") && doc["buffers"].is_array()) {
+      for (const Json& b : doc["buffers"]) {
+        if (b.is_object() && b.contains("byteLength") && b["byteLength"].is_number_unsigned()) {
+          bytes += b["byteLength"].get<std::uint64_t>();
+        }
+      }
+    }
+  } catch (const io::IoError&) {
+    // unreadable: the load stage reports it
+  }
+  return bytes;
+}
+
+void remove_report_leftovers(const fs::path& output_dir, const std::vector<std::string>& names) {
+  std::error_code ec;
+  std::vector<fs::path> stale;
+  for (auto it = fs::directory_iterator(output_dir, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
+    const std::string file = it->path().filename().string();
+    for (const std::string& n : names) {
+      if (file.rfind(n + ".tmp-", 0) == 0) stale.push_back(it->path());
+    }
+  }
+  for (const fs::path& p : stale) fs::remove(p, ec);
+}
+
+}  // namespace
+
+std::uint64_t default_memory_limit() {
+  const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGESIZE);
+  if (pages <= 0 || page <= 0) return 4ull << 30;
+  return static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(page) / 2;
+}
+
+std::uint64_t parse_byte_size(std::string_view text) {
+  std::string s(text);
+  while (!s.empty() && (s.back() == 'B' || s.back() == 'b' || s.back() == 'i')) s.pop_back();  // "4GB", "4GiB"
+  std::uint64_t unit = 1;
+  if (!s.empty()) {
+    switch (s.back()) {
+      case 'k':
+      case 'K':
+        unit = 1ull << 10;
+        break;
+      case 'm':
+      case 'M':
+        unit = 1ull << 20;
+        break;
+      case 'g':
+      case 'G':
+        unit = 1ull << 30;
+        break;
+      case 't':
+      case 'T':
+        unit = 1ull << 40;
+        break;
+      default:
+        break;
+    }
+    if (unit != 1) s.pop_back();
+  }
+  std::size_t used = 0;
+  double value = -1;
+  try {
+    value = std::stod(s, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (s.empty() || used != s.size() || !(value > 0) || !std::isfinite(value) || value * double(unit) > 1e18) {
+    throw std::invalid_argument("'" + std::string(text) + "' is not a byte size (e.g. 4G, 512M, 1000000)");
+  }
+  return static_cast<std::uint64_t>(value * double(unit));
+}
+
+std::string lod_file_name(const fs::path& relative_path, std::size_t level) {
+  return relative_path.stem().string() + "_LOD" + std::to_string(level) + relative_path.extension().string();
+}
+
+std::vector<std::string> scan_library(const fs::path& input_dir) {
+  std::error_code ec;
+  if (!fs::is_directory(input_dir, ec)) throw io::IoError(input_dir, "is not a folder");
+  std::vector<std::string> out;
+  const auto options = fs::directory_options::skip_permission_denied;
+  for (auto it = fs::recursive_directory_iterator(input_dir, options, ec);
+       !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+    // The cache and outputs of a run into a folder inside the library are not assets.
+    if (it->is_directory() && it->path().filename() == kCacheFolder) {
+      it.disable_recursion_pending();
+      continue;
+    }
+    if (it->is_regular_file() && supported(it->path())) {
+      out.push_back(fs::relative(it->path(), input_dir).generic_string());
+    }
+  }
+  if (ec) throw io::IoError(input_dir, "cannot list the folder: " + ec.message());
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
+  const auto t0 = Clock::now();
+  const int cores = tbb::info::default_concurrency();
+  const unsigned jobs = options.jobs == 0 ? static_cast<unsigned>(cores) : options.jobs;
+  const std::uint64_t memory_limit = options.memory_limit_bytes ? options.memory_limit_bytes : default_memory_limit();
+  const std::string tag =
+      options.shard ? std::to_string(options.shard->index) + "-of-" + std::to_string(options.shard->count) : "0-of-1";
+  const std::string report_stem = options.shard ? "report.shard-" + tag : "report";
+
+  // Scan (sorted), shard, classify.
+  const std::vector<std::string> all = scan_library(options.input_dir);
+  std::error_code ec;
+  // An output folder inside the library is not part of it (its LODs would be assets of the next run).
+  std::string output_prefix;
+  {
+    const fs::path rel =
+        fs::weakly_canonical(options.output_dir, ec).lexically_relative(fs::weakly_canonical(options.input_dir, ec));
+    if (rel == ".") throw io::IoError(options.output_dir, "the output folder must not be the library folder");
+    if (!rel.empty() && *rel.begin() != "..") output_prefix = rel.generic_string() + "/";
+  }
+  fs::create_directories(options.output_dir, ec);
+  if (ec) throw io::IoError(options.output_dir, "cannot create the output folder: " + ec.message());
+  const Cache cache(options.output_dir, tag);
+
+  std::vector<std::string> paths;
+  for (const std::string& p : all) {
+    if (!output_prefix.empty() && p.rfind(output_prefix, 0) == 0) continue;
+    if (!options.shard || in_shard(*options.shard, p)) paths.push_back(p);
+  }
+  cache.remove_leftovers(paths);
+  remove_report_leftovers(options.output_dir, {report_stem + ".json", report_stem + ".html"});
+
+  std::vector<Json> records(paths.size());
+  std::vector<Pending> pending;
+  for (std::size_t i = 0; i < paths.size(); ++i) {
+    const AssetClass* cls = match_class(config, paths[i]);
+    if (!cls) {
+      records[i] = base_record(paths[i], nullptr);
+      records[i]["status"] = "skipped";
+      records[i]["error"] = unmatched_reason(config, paths[i]);
+      continue;
+    }
+    const std::uint64_t size = asset_bytes(options.input_dir / paths[i]);
+    pending.push_back({i, paths[i], cls, size * kFootprintPerFileByte + kFootprintOverhead});
+  }
+
+  RunResult result;
+  // One asset in flight per thread. Extra ones would wait as spawned tasks, and TBB runs the newest task
+  // first, so they would sit (holding their memory budget) until the end of the run.
+  Admission admission(std::move(pending), memory_limit, jobs, options.cancel, options.stop_after);
+  std::size_t done = static_cast<std::size_t>(
+      std::count_if(records.begin(), records.end(), [](const Json& r) { return !r.is_null(); }));
+  std::uint64_t triangles_done = 0;
+
+  // More threads than cores only when asked for: TBB otherwise caps an arena at the core count.
+  std::optional<tbb::global_control> oversubscribe;
+  if (jobs > static_cast<unsigned>(cores)) {
+    oversubscribe.emplace(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(jobs));
+  }
+  tbb::task_arena arena(static_cast<int>(jobs));
+  Pipeline pipeline(config, options, cache, jobs, memory_limit);
+  arena.execute([&] {
+    namespace flow = tbb::flow;
+    flow::graph g;
+    using Node = flow::function_node<JobPtr, JobPtr>;
+    auto make = [&](auto member, double StageSeconds::*field) {
+      return std::make_unique<Node>(g, flow::unlimited,
+                                    stage([&pipeline, member](Job& j) { (pipeline.*member)(j); }, field));
+    };
+    auto fingerprint = make(&Pipeline::fingerprint, &StageSeconds::fingerprint);
+    auto load = make(&Pipeline::load, &StageSeconds::load);
+    auto analyse = make(&Pipeline::analyse, &StageSeconds::analyse);
+    auto lods = make(&Pipeline::lods, &StageSeconds::lods);
+    auto post = make(&Pipeline::post_process, &StageSeconds::post_process);
+    auto measure = make(&Pipeline::measure, &StageSeconds::measure);
+    auto write = make(&Pipeline::write, &StageSeconds::write);
+
+    auto start = [&](const std::vector<Pending>& batch) {
+      for (const Pending& p : batch) {
+        auto job = std::make_shared<Job>();
+        job->index = p.index;
+        job->path = p.path;
+        job->file = options.input_dir / p.path;
+        job->cls = p.cls;
+        job->footprint = p.footprint;
+        job->record = base_record(p.path, p.cls);
+        fingerprint->try_put(std::move(job));
+      }
+    };
+    // Serial: records, counters and the observer see one asset at a time.
+    flow::function_node<JobPtr, flow::continue_msg> report(g, flow::serial, [&](const JobPtr& job) {
+      // This run's work on the asset (also for a cache hit: its lookup), not the time it waited for a thread.
+      job->record["seconds"] = work_seconds(job->stages);
+      records[job->index] = std::move(job->record);
+      const StageSeconds& s = job->stages;
+      StageSeconds& total = result.stages;
+      total.fingerprint += s.fingerprint, total.load += s.load, total.analyse += s.analyse, total.lods += s.lods;
+      total.post_process += s.post_process, total.measure += s.measure, total.write += s.write;
+      triangles_done += job->processed_triangles;
+      ++done;
+      // Free the asset's meshes before more assets are admitted against its budget.
+      const std::uint64_t footprint = job->footprint;
+      const std::size_t index = job->index;
+      job->asset = {};
+      job->chains.clear();
+      job->sources.clear();
+      job->levels.clear();
+      if (options.on_asset_done) {
+        try {
+          options.on_asset_done(AssetDone{.record = records[index],
+                                          .done = done,
+                                          .total = paths.size(),
+                                          .input_triangles_done = triangles_done,
+                                          .elapsed_seconds = seconds_since(t0)});
+        } catch (...) {
+          // Progress output is best effort: a failing observer must not stop the graph.
+        }
+      }
+      admission.release(footprint);
+      start(admission.take());
+      return flow::continue_msg();
+    });
+    flow::make_edge(*fingerprint, *load);
+    flow::make_edge(*load, *analyse);
+    flow::make_edge(*analyse, *lods);
+    flow::make_edge(*lods, *post);
+    flow::make_edge(*post, *measure);
+    flow::make_edge(*measure, *write);
+    flow::make_edge(*write, report);
+    start(admission.take());
+    g.wait_for_all();
+  });
+  cache.remove_empty_staging();
+
+  for (const Pending& p : admission.left()) {
+    records[p.index] = base_record(p.path, p.cls);
+    records[p.index]["status"] = "skipped";
+    records[p.index]["error"] = "not processed: the run was stopped before this asset";
+    result.cancelled = true;
+  }
+
+  Json assets = Json::array();
+  for (std::size_t i = 0; i < records.size(); ++i) {
+    const Json& r = records[i];
+    const std::string status = r["status"];
+    if (status == "ok")
+      ++result.succeeded;
+    else if (status == "failed") {
+      ++result.failed;
+      result.failures.push_back(paths[i] + ": " + r["error"].get<std::string>());
+    } else {
+      ++result.skipped;
+    }
+    if (r["cache_hit"].get<bool>()) ++result.cache_hits;
+    assets.push_back(std::move(records[i]));
+  }
+  result.input_triangles = triangles_done;
+  result.seconds = seconds_since(t0);
+
+  Json report = Json::object();
+  report["lodforge_version"] = kLodforgeVersion;
+  report["config_file"] = options.config_file.generic_string();
+  report["effective_config"] = effective_config_json(config);
+  report["jobs"] = jobs;
+  report["shard"] = options.shard ? Json(shard_name(*options.shard)) : Json(nullptr);
+  report["summary"] = report_summary(assets, result.seconds);
+  report["assets"] = std::move(assets);
+  if (options.write_report) {
+    result.report_path = options.output_dir / (report_stem + ".json");
+    write_report(report, result.report_path, options.output_dir / (report_stem + ".html"));
+  }
+  result.report = std::move(report);
+  return result;
+}
+
+}  // namespace lodforge::batch

@@ -1,0 +1,341 @@
+// The batch commands: `lodforge run`, `validate-config`, `merge-reports` and `bench` (issue 5).
+//
+// Exit codes follow main.cpp: 0 all assets done, 1 some assets failed (listed on stderr), 2 usage, config or
+// input-folder errors (nothing processed), 3 internal error; `run` stopped by Ctrl-C exits 130 after the
+// assets in flight are finished and the report is written (a second Ctrl-C kills it at once; either way a
+// re-run resumes from the cache).
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "commands.hpp"
+#include "lodforge/batch/config.hpp"
+#include "lodforge/batch/report.hpp"
+#include "lodforge/batch/runner.hpp"
+#include "lodforge/batch/shard.hpp"
+#include "lodforge/io/asset.hpp"
+#include "lodforge/io/file.hpp"
+
+namespace lodforge::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using Json = nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+constexpr int kExitInterrupted = 130;     // 128 + SIGINT, what shells report for a Ctrl-C'd command
+constexpr double kRedrawSeconds = 0.1;    // a progress line redrawn more often only flickers
+constexpr std::size_t kPathColumns = 36;  // with the counters, the progress line fits 80 columns
+
+std::atomic<bool> g_cancel{false};
+
+// First Ctrl-C / SIGTERM: stop admitting assets and finish cleanly; the second one kills the default way.
+extern "C" void on_signal(int sig) {
+  if (g_cancel.exchange(true)) {
+    std::signal(sig, SIG_DFL);
+    std::raise(sig);
+  }
+}
+
+std::string human_count(double n) {
+  char buf[32];
+  if (n >= 1e9)
+    std::snprintf(buf, sizeof buf, "%.2fG", n / 1e9);
+  else if (n >= 1e6)
+    std::snprintf(buf, sizeof buf, "%.2fM", n / 1e6);
+  else if (n >= 1e3)
+    std::snprintf(buf, sizeof buf, "%.1fk", n / 1e3);
+  else
+    std::snprintf(buf, sizeof buf, "%.0f", n);
+  return buf;
+}
+
+std::string clock_time(double seconds) {
+  const long s = static_cast<long>(seconds + 0.5);
+  char buf[32];
+  if (s >= 3600)
+    std::snprintf(buf, sizeof buf, "%ld:%02ld:%02ld", s / 3600, s / 60 % 60, s % 60);
+  else
+    std::snprintf(buf, sizeof buf, "%ld:%02ld", s / 60, s % 60);
+  return buf;
+}
+
+// Progress on stderr: one live line on a terminal, one plain line per asset otherwise (logs, CI).
+class Progress {
+ public:
+  explicit Progress(bool tty) : tty_(tty) {}
+
+  void operator()(const batch::AssetDone& d) {
+    const Json& r = d.record;
+    const std::string path = r["path"];
+    const std::string status = r["status"];
+    if (!tty_) {
+      std::string what;
+      if (status == "failed")
+        what = "FAILED: " + r["error"].get<std::string>();
+      else if (status == "skipped")
+        what = "skipped: " + r["error"].get<std::string>();
+      else {
+        char buf[96];
+        std::snprintf(buf, sizeof buf, "%zu LODs, %.2f s%s", r["lods"].size(), r["seconds"].get<double>(),
+                      r["cache_hit"].get<bool>() ? " (cached)" : "");
+        what = buf;
+      }
+      std::fprintf(stderr, "[%zu/%zu] %s: %s\n", d.done, d.total, path.c_str(), what.c_str());
+      return;
+    }
+    if (status == "failed") failed_ += 1;
+    const auto now = Clock::now();
+    if (d.done < d.total && drawn_ && std::chrono::duration<double>(now - last_).count() < kRedrawSeconds) return;
+    last_ = now;
+    drawn_ = true;
+    // Keep the line inside a terminal's width: long paths show their tail, where the file name is.
+    const std::string shown = path.size() > kPathColumns ? "..." + path.substr(path.size() - kPathColumns + 3) : path;
+    const double rate = d.elapsed_seconds > 0 ? double(d.input_triangles_done) / d.elapsed_seconds : 0.0;
+    const double eta = d.done > 0 ? d.elapsed_seconds * double(d.total - d.done) / double(d.done) : 0.0;
+    std::fprintf(stderr, "\r\x1b[K[%zu/%zu] %3.0f%%  %s tri/s  ETA %s%s  %s", d.done, d.total,
+                 d.total ? 100.0 * double(d.done) / double(d.total) : 100.0, human_count(rate).c_str(),
+                 clock_time(eta).c_str(), failed_ ? ("  " + std::to_string(failed_) + " failed").c_str() : "",
+                 shown.c_str());
+    std::fflush(stderr);
+  }
+
+  void finish() {
+    if (tty_ && drawn_) std::fprintf(stderr, "\r\x1b[K");
+  }
+
+ private:
+  bool tty_;
+  bool drawn_ = false;
+  std::size_t failed_ = 0;
+  Clock::time_point last_{};
+};
+
+struct RunArgs {
+  std::string config, input, output, shard, memory_limit;
+  unsigned jobs = 0;
+  bool force = false;
+};
+
+// Config and options shared by `run` and `bench`; prints the problem and returns nullopt on a usage error.
+std::optional<batch::BatchConfig> load_config_or_report(const std::string& file) {
+  try {
+    return batch::load_config(file);
+  } catch (const batch::ConfigError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "error: %s: %s\n", file.c_str(), e.what());
+  }
+  return std::nullopt;
+}
+
+void print_summary(const batch::RunResult& r) {
+  const Json& s = r.report["summary"];
+  std::printf("lodforge run: %llu assets: %llu ok (%llu cache hits), %llu failed, %llu skipped\n",
+              s["assets"].get<unsigned long long>(), s["succeeded"].get<unsigned long long>(),
+              s["cache_hits"].get<unsigned long long>(), s["failed"].get<unsigned long long>(),
+              s["skipped"].get<unsigned long long>());
+  std::printf("  %llu LODs, %s input -> %s output triangles, %.2f s with %llu jobs\n",
+              s["lods"].get<unsigned long long>(), human_count(s["input_triangles"].get<double>()).c_str(),
+              human_count(s["output_triangles"].get<double>()).c_str(), s["seconds"].get<double>(),
+              r.report["jobs"].get<unsigned long long>());
+  if (!r.report_path.empty()) {
+    fs::path html = r.report_path;
+    html.replace_extension(".html");
+    std::printf("  report: %s, %s\n", r.report_path.string().c_str(), html.string().c_str());
+  }
+}
+
+void run_command(const RunArgs& a) {
+  const std::optional<batch::BatchConfig> config = load_config_or_report(a.config);
+  if (!config) return set_exit_code(2);
+  batch::RunOptions options{
+      .config_file = a.config, .input_dir = a.input, .output_dir = a.output, .jobs = a.jobs, .force = a.force};
+  try {
+    if (!a.shard.empty()) options.shard = batch::parse_shard(a.shard);
+    if (!a.memory_limit.empty()) options.memory_limit_bytes = batch::parse_byte_size(a.memory_limit);
+  } catch (const std::invalid_argument& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return set_exit_code(2);
+  }
+  std::error_code ec;
+  if (!fs::is_directory(a.input, ec)) {
+    std::fprintf(stderr, "error: %s: no such folder (--input must be the library folder)\n", a.input.c_str());
+    return set_exit_code(2);
+  }
+
+  Progress progress(::isatty(::fileno(stderr)) == 1);
+  options.on_asset_done = [&progress](const batch::AssetDone& d) { progress(d); };
+  g_cancel = false;
+  options.cancel = &g_cancel;
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  batch::RunResult r;
+  try {
+    r = batch::run_batch(*config, options);
+  } catch (const io::IoError& e) {
+    progress.finish();
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return set_exit_code(2);
+  } catch (const std::exception& e) {
+    progress.finish();
+    std::fprintf(stderr, "internal error: %s\n", e.what());
+    return set_exit_code(3);
+  }
+  std::signal(SIGINT, SIG_DFL);
+  std::signal(SIGTERM, SIG_DFL);
+  progress.finish();
+  print_summary(r);
+  if (!r.failures.empty()) {
+    std::fprintf(stderr, "%zu asset(s) failed:\n", r.failures.size());
+    for (const std::string& f : r.failures) std::fprintf(stderr, "  %s\n", f.c_str());
+    set_exit_code(1);
+  }
+  if (r.cancelled && g_cancel) {
+    std::fprintf(stderr, "interrupted: the assets not reported were not processed; run again to resume\n");
+    set_exit_code(kExitInterrupted);
+  }
+}
+
+void bench_command(const RunArgs& a, unsigned max_jobs) {
+  const std::optional<batch::BatchConfig> config = load_config_or_report(a.config);
+  if (!config) return set_exit_code(2);
+  std::error_code ec;
+  if (!fs::is_directory(a.input, ec)) {
+    std::fprintf(stderr, "error: %s: no such folder\n", a.input.c_str());
+    return set_exit_code(2);
+  }
+  if (max_jobs == 0) max_jobs = static_cast<unsigned>(std::max(1u, std::thread::hardware_concurrency()));
+  std::string pattern = (fs::temp_directory_path() / "lodforge-bench-XXXXXX").string();
+  if (!::mkdtemp(pattern.data())) {
+    std::fprintf(stderr, "error: cannot create a temporary folder\n");
+    return set_exit_code(3);
+  }
+  const fs::path temp(pattern);
+  std::printf("bench: %s with %s, jobs 1..%u (outputs in a temporary folder, --force)\n", a.input.c_str(),
+              a.config.c_str(), max_jobs);
+  std::printf("%4s %8s %9s %10s %12s %8s %10s\n", "jobs", "assets", "seconds", "assets/s", "input tri/s", "speedup",
+              "efficiency");
+  double base = 0;
+  std::vector<std::pair<unsigned, batch::StageSeconds>> stages;
+  try {
+    for (unsigned j = 1; j <= max_jobs; ++j) {
+      const fs::path out = temp / ("jobs" + std::to_string(j));
+      const batch::RunResult r = batch::run_batch(
+          *config, {.config_file = a.config, .input_dir = a.input, .output_dir = out, .jobs = j, .force = true});
+      const double assets = static_cast<double>(r.succeeded + r.failed);
+      if (j == 1) base = r.seconds;
+      const double speedup = r.seconds > 0 ? base / r.seconds : 0.0;
+      std::printf("%4u %8.0f %9.2f %10.1f %12s %7.2fx %9.0f%%\n", j, assets, r.seconds,
+                  r.seconds > 0 ? assets / r.seconds : 0.0,
+                  human_count(r.seconds > 0 ? double(r.input_triangles) / r.seconds : 0.0).c_str(), speedup,
+                  100.0 * speedup / j);
+      stages.emplace_back(j, r.stages);
+      if (r.failed) std::printf("     (%zu asset(s) failed; first: %s)\n", r.failed, r.failures.front().c_str());
+      fs::remove_all(out, ec);
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    fs::remove_all(temp, ec);
+    return set_exit_code(2);
+  }
+  fs::remove_all(temp, ec);
+  std::printf("per-stage time, summed over assets (seconds; stages of different assets overlap):\n");
+  std::printf("%4s %11s %8s %8s %8s %12s %8s %8s\n", "jobs", "fingerprint", "load", "analyse", "lods", "post_process",
+              "measure", "write");
+  for (const auto& [j, s] : stages) {
+    std::printf("%4u %11.2f %8.2f %8.2f %8.2f %12.2f %8.2f %8.2f\n", j, s.fingerprint, s.load, s.analyse, s.lods,
+                s.post_process, s.measure, s.write);
+  }
+}
+
+}  // namespace
+
+void register_run(CLI::App& app) {
+  auto a = std::make_shared<RunArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "run",
+      "Build the LOD chains of every asset of a library as a config says (incremental, parallel).\n"
+      "Writes OUT_DIR/<same folders>/..., OUT_DIR/report.json and report.html, OUT_DIR/.lodforge-cache/.");
+  cmd->add_option("--config", a->config, "batch config (JSON; see configs/schema.json)")->required();
+  cmd->add_option("--input", a->input, "library folder (searched recursively)")->required();
+  cmd->add_option("--output", a->output, "output folder (created)")->required();
+  cmd->add_option("--jobs", a->jobs, "threads for the whole run (0 = all cores)")->default_val(0);
+  cmd->add_option("--shard", a->shard,
+                  "K/N: process only the assets whose path hashes to K mod N (K is 0-based); the report goes to "
+                  "report.shard-K-of-N.json, see merge-reports");
+  cmd->add_flag("--force", a->force, "ignore the cache: rebuild every asset");
+  cmd->add_option("--memory-limit", a->memory_limit,
+                  "memory budget for assets in flight, e.g. 4G or 512M (default: half the RAM)");
+  cmd->callback([a] { run_command(*a); });
+}
+
+void register_validate_config(CLI::App& app) {
+  auto file = std::make_shared<std::string>();
+  CLI::App* cmd = app.add_subcommand(
+      "validate-config", "Check a batch config; print its effective form (defaults applied) or every problem.");
+  cmd->add_option("config", *file, "batch config (JSON)")->required();
+  cmd->callback([file] {
+    const std::optional<batch::BatchConfig> config = load_config_or_report(*file);
+    if (!config) return set_exit_code(2);
+    std::printf("%s\n", batch::effective_config_json(*config).dump(2).c_str());
+  });
+}
+
+void register_merge_reports(CLI::App& app) {
+  auto out = std::make_shared<std::string>();
+  auto inputs = std::make_shared<std::vector<std::string>>();
+  CLI::App* cmd = app.add_subcommand(
+      "merge-reports", "Merge the report.json files of the shards of one run into one report (and its .html).");
+  cmd->add_option("output", *out, "merged report to write (.json; the page goes next to it as .html)")->required();
+  cmd->add_option("reports", *inputs, "shard reports (report.shard-K-of-N.json)")->required();
+  cmd->callback([out, inputs] {
+    std::vector<Json> reports;
+    try {
+      for (const std::string& f : *inputs) {
+        const Json j = Json::parse(io::read_file(f), nullptr, false);
+        if (j.is_discarded()) {
+          std::fprintf(stderr, "error: %s: not valid JSON\n", f.c_str());
+          return set_exit_code(2);
+        }
+        reports.push_back(j);
+      }
+      const Json merged = batch::merge_reports(reports);
+      fs::path html(*out);
+      html.replace_extension(".html");
+      batch::write_report(merged, *out, html);
+      std::printf("merged %zu reports: %llu assets (%llu ok, %llu failed, %llu skipped) -> %s\n", reports.size(),
+                  merged["summary"]["assets"].get<unsigned long long>(),
+                  merged["summary"]["succeeded"].get<unsigned long long>(),
+                  merged["summary"]["failed"].get<unsigned long long>(),
+                  merged["summary"]["skipped"].get<unsigned long long>(), out->c_str());
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "error: %s\n", e.what());
+      set_exit_code(2);
+    }
+  });
+}
+
+void register_bench(CLI::App& app) {
+  auto a = std::make_shared<RunArgs>();
+  auto max_jobs = std::make_shared<unsigned>(0);
+  CLI::App* cmd = app.add_subcommand(
+      "bench", "Run the batch pipeline with 1..N jobs; print throughput, scaling efficiency and per-stage time.");
+  cmd->add_option("--config", a->config, "batch config (JSON)")->required();
+  cmd->add_option("--input", a->input, "library folder")->required();
+  cmd->add_option("--max-jobs", *max_jobs, "largest job count (default: all cores)")->default_val(0);
+  cmd->callback([a, max_jobs] { bench_command(*a, *max_jobs); });
+}
+
+}  // namespace lodforge::cli

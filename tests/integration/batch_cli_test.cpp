@@ -1,0 +1,306 @@
+// End-to-end tests of the batch commands (`run`, `validate-config`, `merge-reports`, `bench`): exit codes,
+// log lines, and what a killed or interrupted run leaves behind.
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "../unit/batch/library_fixture.hpp"
+#include "lodforge/io/file.hpp"
+#include "test_support.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using Json = nlohmann::json;
+namespace testlib = lodforge::batch::testlib;
+
+struct CliResult {
+  int code = -1;
+  std::string output;  // stdout and stderr together
+};
+
+CliResult run_cli(const std::string& args) {
+  const std::string cmd = std::string(LODFORGE_CLI) + " " + args + " 2>&1";
+  CliResult r;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return r;
+  std::array<char, 4096> buf{};
+  while (std::fgets(buf.data(), buf.size(), p)) r.output += buf.data();
+  const int status = pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+std::string q(const fs::path& p) {
+  std::string s(1, '\'');
+  s += p.string();
+  s += '\'';
+  return s;
+}
+
+std::string run_args(const fs::path& config, const fs::path& lib, const fs::path& out, const std::string& more = "") {
+  return "run --config " + q(config) + " --input " + q(lib) + " --output " + q(out) + " " + more;
+}
+
+// Starts the CLI in the background (output to `log`); returns its pid.
+pid_t spawn_cli(const std::vector<std::string>& args, const fs::path& log) {
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    dup2(fd, 1);
+    dup2(fd, 2);
+    std::vector<char*> argv{const_cast<char*>(LODFORGE_CLI)};
+    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    execv(LODFORGE_CLI, argv.data());
+    _exit(127);
+  }
+  return pid;
+}
+
+std::size_t cache_entries(const fs::path& out) {
+  std::error_code ec;
+  std::size_t n = 0;
+  for (auto it = fs::directory_iterator(out / ".lodforge-cache/entries", ec); !ec && it != fs::directory_iterator();
+       it.increment(ec)) {
+    n += it->path().extension() == ".json";
+  }
+  return n;
+}
+
+// Waits until `out` has at least `entries` finished assets (or the child exits); true if it is still running.
+bool wait_for_entries(pid_t pid, const fs::path& out, std::size_t entries) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (cache_entries(out) >= entries) return true;
+    int status = 0;
+    if (waitpid(pid, &status, WNOHANG) == pid) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return true;
+}
+
+void strip_seconds(Json& j) {
+  if (j.is_object()) {
+    j.erase("seconds");
+    for (auto& [k, v] : j.items()) strip_seconds(v);
+  } else if (j.is_array()) {
+    for (Json& v : j) strip_seconds(v);
+  }
+}
+
+Json comparable_report(const fs::path& file) {
+  Json j = Json::parse(lodforge::io::read_file(file));
+  strip_seconds(j);
+  j["jobs"] = 0;
+  return j;
+}
+
+TEST(BatchCli, HelpListsTheBatchCommands) {
+  const CliResult r = run_cli("--help");
+  for (const char* s : {"run", "validate-config", "merge-reports", "bench"}) {
+    EXPECT_NE(r.output.find(s), std::string::npos) << s;
+  }
+}
+
+TEST(BatchCli, ValidateConfigPrintsTheEffectiveConfigOrEveryError) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_validate");
+  const CliResult ok = run_cli("validate-config " + q(fs::path(LODFORGE_SOURCE_DIR) / "configs/default.json"));
+  EXPECT_EQ(ok.code, 0) << ok.output;
+  const Json effective = Json::parse(ok.output);
+  EXPECT_EQ(effective["classes"].size(), 4u);
+  EXPECT_TRUE(effective["defaults"].contains("engine")) << "defaults applied";
+
+  std::ofstream(dir / "bad.json") << R"({"version": 1, "classes": [{"name": "a", "match": ["**"],
+      "lods": [{"ratio": 0.5}, {"ratio": 0.7}], "colour": 1}]})";
+  const CliResult bad = run_cli("validate-config " + q(dir / "bad.json"));
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.output.find("classes[0].lods[1].ratio"), std::string::npos) << bad.output;
+  EXPECT_NE(bad.output.find("colour"), std::string::npos) << bad.output;
+  EXPECT_EQ(run_cli("validate-config " + q(dir / "missing.json")).code, 2);
+}
+
+TEST(BatchCli, RunWritesLodsAReportAndOneLogLinePerAsset) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_run");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 30);
+  const fs::path config = testlib::write_config(dir);
+  const CliResult r = run_cli(run_args(config, lib.root, dir / "out", "--jobs 2"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  const std::string n = std::to_string(lib.files.size());
+  EXPECT_NE(r.output.find("[1/" + n + "] "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("[" + n + "/" + n + "] "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(" LODs, "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("lodforge run: " + n + " assets: " + n + " ok (0 cache hits), 0 failed, 0 skipped"),
+            std::string::npos)
+      << r.output;
+  EXPECT_TRUE(fs::exists(dir / "out/report.html"));
+  const Json report = Json::parse(lodforge::io::read_file(dir / "out/report.json"));
+  EXPECT_EQ(report["summary"]["succeeded"], lib.files.size());
+  EXPECT_EQ(report["jobs"], 2);
+  EXPECT_TRUE(report["shard"].is_null());
+  EXPECT_TRUE(fs::exists(dir / "out/props/prop_0_LOD3.obj"));
+  EXPECT_TRUE(fs::exists(dir / "out/chars/hero_22.glb"));
+  EXPECT_TRUE(fs::exists(dir / "out/chars/hero_21.gltf") && fs::exists(dir / "out/chars/hero_21.bin"));
+
+  const CliResult again = run_cli(run_args(config, lib.root, dir / "out", "--jobs 2"));
+  EXPECT_EQ(again.code, 0);
+  EXPECT_NE(again.output.find("(" + n + " cache hits)"), std::string::npos) << again.output;
+  EXPECT_NE(again.output.find("(cached)"), std::string::npos) << again.output;
+}
+
+TEST(BatchCli, FailedAssetsExitOneAndAreListed) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_failed");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 12);
+  std::ofstream(lib.root / "props/broken.stl") << "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0\n";
+  const CliResult r = run_cli(run_args(testlib::write_config(dir), lib.root, dir / "out"));
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("1 asset(s) failed:\n  props/broken.stl: "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("props/broken.stl: FAILED: "), std::string::npos) << r.output;
+  EXPECT_TRUE(fs::exists(dir / "out/props/prop_0_LOD1.obj")) << "the others completed";
+}
+
+TEST(BatchCli, UsageAndConfigErrorsExitTwoAndWriteNothing) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_usage");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 3);
+  const fs::path config = testlib::write_config(dir);
+  std::ofstream(dir / "bad.json") << "{\"version\": 1, \"classes\": []";
+  const std::vector<std::string> cases = {
+      run_args(config, lib.root, dir / "out", "--shard 3/3"),
+      run_args(config, lib.root, dir / "out", "--shard x"),
+      run_args(config, lib.root, dir / "out", "--memory-limit lots"),
+      run_args(config, dir / "no_such_library", dir / "out"),
+      run_args(dir / "bad.json", lib.root, dir / "out"),
+      run_args(dir / "missing.json", lib.root, dir / "out"),
+      "run --config " + q(config) + " --input " + q(lib.root),  // no --output
+  };
+  for (const std::string& args : cases) {
+    const CliResult r = run_cli(args);
+    EXPECT_EQ(r.code, 2) << args << "\n" << r.output;
+    EXPECT_FALSE(r.output.empty()) << args << ": says why";
+  }
+  EXPECT_FALSE(fs::exists(dir / "out"));
+}
+
+TEST(BatchCli, KilledRunResumesToIdenticalOutputWithoutPartialFiles) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_kill");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 200);
+  const fs::path config = testlib::write_config(dir);
+  ASSERT_EQ(run_cli(run_args(config, lib.root, dir / "clean", "--jobs 2")).code, 0);
+  const auto clean = testlib::read_outputs(dir / "clean");
+
+  const pid_t pid = spawn_cli({"run", "--config", config.string(), "--input", lib.root.string(), "--output",
+                               (dir / "out").string(), "--jobs", "1"},
+                              dir / "killed.log");
+  ASSERT_GT(pid, 0);
+  const bool running = wait_for_entries(pid, dir / "out", 40);
+  if (running) {
+    kill(pid, SIGKILL);
+    int status = 0;
+    waitpid(pid, &status, 0);
+    EXPECT_TRUE(WIFSIGNALED(status));
+  }
+  const std::size_t finished = cache_entries(dir / "out");
+  EXPECT_GE(finished, 40u);
+  // Whatever is in place is complete: every output file present equals the clean run's file.
+  for (const auto& [rel, bytes] : testlib::read_outputs(dir / "out")) {
+    ASSERT_TRUE(clean.count(rel)) << rel << " is not an output of a clean run";
+    EXPECT_TRUE(clean.at(rel) == bytes) << rel << " is partial or different";
+  }
+  EXPECT_FALSE(fs::exists(dir / "out/report.json")) << "a killed run writes no report";
+
+  const CliResult resumed = run_cli(run_args(config, lib.root, dir / "out", "--jobs 2"));
+  EXPECT_EQ(resumed.code, 0) << resumed.output;
+  const Json report = Json::parse(lodforge::io::read_file(dir / "out/report.json"));
+  EXPECT_GE(report["summary"]["cache_hits"].get<std::size_t>(), finished) << "finished assets are not redone";
+  EXPECT_TRUE(testlib::read_outputs(dir / "out") == clean);
+  EXPECT_TRUE(testlib::leftovers(dir / "out").empty());
+  EXPECT_EQ(comparable_report(dir / "out/report.json")["summary"]["succeeded"], lib.files.size());
+}
+
+TEST(BatchCli, CtrlCFinishesAssetsInFlightWritesTheReportAndExits130) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_sigint");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 200);
+  const fs::path config = testlib::write_config(dir);
+  const pid_t pid = spawn_cli({"run", "--config", config.string(), "--input", lib.root.string(), "--output",
+                               (dir / "out").string(), "--jobs", "1"},
+                              dir / "sigint.log");
+  ASSERT_GT(pid, 0);
+  if (!wait_for_entries(pid, dir / "out", 20)) GTEST_SKIP() << "the run finished before it could be interrupted";
+  kill(pid, SIGINT);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 130) << lodforge::io::read_file(dir / "sigint.log");
+  const Json report = Json::parse(lodforge::io::read_file(dir / "out/report.json"));
+  EXPECT_GT(report["summary"]["skipped"].get<std::size_t>(), 0u);
+  EXPECT_EQ(report["summary"]["succeeded"].get<std::size_t>(), cache_entries(dir / "out"));
+  EXPECT_TRUE(testlib::leftovers(dir / "out").empty());
+  EXPECT_EQ(run_cli(run_args(config, lib.root, dir / "out")).code, 0);
+}
+
+TEST(BatchCli, ThreeShardsMergeToTheUnshardedReport) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_shards");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 60);
+  const fs::path config = testlib::write_config(dir);
+  ASSERT_EQ(run_cli(run_args(config, lib.root, dir / "whole")).code, 0);
+  std::string merge = "merge-reports " + q(dir / "merged/report.json");
+  fs::create_directories(dir / "merged");
+  for (int k = 0; k < 3; ++k) {
+    const fs::path out = dir / ("shard" + std::to_string(k));
+    const CliResult r = run_cli(run_args(config, lib.root, out, "--shard " + std::to_string(k) + "/3"));
+    ASSERT_EQ(r.code, 0) << r.output;
+    const fs::path report = out / ("report.shard-" + std::to_string(k) + "-of-3.json");
+    ASSERT_TRUE(fs::exists(report));
+    EXPECT_FALSE(fs::exists(out / "report.json"));
+    merge += " " + q(report);
+  }
+  const CliResult m = run_cli(merge);
+  ASSERT_EQ(m.code, 0) << m.output;
+  EXPECT_NE(m.output.find("merged 3 reports: " + std::to_string(lib.files.size()) + " assets"), std::string::npos)
+      << m.output;
+  EXPECT_TRUE(fs::exists(dir / "merged/report.html"));
+  const Json whole = comparable_report(dir / "whole/report.json");
+  const Json merged = comparable_report(dir / "merged/report.json");
+  EXPECT_EQ(merged, whole);
+  // Merging a shard twice is refused.
+  EXPECT_EQ(run_cli("merge-reports " + q(dir / "x.json") + " " + q(dir / "shard0/report.shard-0-of-3.json") + " " +
+                    q(dir / "shard0/report.shard-0-of-3.json"))
+                .code,
+            2);
+}
+
+TEST(BatchCli, BenchPrintsThroughputScalingAndStages) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_bench");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 10);
+  const CliResult r =
+      run_cli("bench --config " + q(testlib::write_config(dir)) + " --input " + q(lib.root) + " --max-jobs 2");
+  EXPECT_EQ(r.code, 0) << r.output;
+  for (const char* s : {"assets/s", "input tri/s", "efficiency", "per-stage time", "measure"}) {
+    EXPECT_NE(r.output.find(s), std::string::npos) << s << "\n" << r.output;
+  }
+  EXPECT_NE(r.output.find("\n   2 "), std::string::npos) << r.output;
+}
+
+TEST(BatchCli, DemoLibraryRunsWithTheDefaultConfig) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_demo");
+  ASSERT_EQ(run_cli("demo " + q(dir / "lib")).code, 0);
+  const CliResult r =
+      run_cli(run_args(fs::path(LODFORGE_SOURCE_DIR) / "configs/default.json", dir / "lib", dir / "out"));
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("5 assets: 5 ok"), std::string::npos) << r.output;
+  EXPECT_TRUE(fs::exists(dir / "out/characters/torus_ring.gltf"));
+}
+
+}  // namespace

@@ -1,0 +1,115 @@
+// report.json's shape checker, the timing filter and shard-report merging.
+#include "lodforge/batch/report.hpp"
+
+#include <gtest/gtest.h>
+
+#include <stdexcept>
+
+namespace lodforge::batch {
+namespace {
+
+using Json = nlohmann::json;
+
+Json lod(int level) {
+  return {{"level", level},
+          {"from", "previous"},
+          {"target", {{"kind", "ratio"}, {"value", 0.5}}},
+          {"target_triangles", 50},
+          {"triangles", 50},
+          {"vertices", 27},
+          {"ratio", 0.5},
+          {"error_bound_abs", 0.01},
+          {"error_bound_rel", 0.001},
+          {"mean_rel", 0.0001},
+          {"rms_rel", 0.0002},
+          {"hausdorff_rel", 0.002},
+          {"normal_deviation_mean_deg", 1.5},
+          {"stop_reason", "target_reached"},
+          {"seconds", 0.01},
+          {"screen_coverage", 0.4}};
+}
+
+Json asset(const std::string& path, const std::string& status = "ok") {
+  return {{"path", path},
+          {"class", "props"},
+          {"status", status},
+          {"error", status == "ok" ? Json(nullptr) : Json("bad file")},
+          {"cache_hit", false},
+          {"seconds", 0.1},
+          {"input", {{"triangles", 100}, {"vertices", 52}, {"diagonal", 1.7}}},
+          {"outputs", status == "ok" ? Json::array({path + "_LOD1"}) : Json::array()},
+          {"lods", status == "ok" ? Json::array({lod(1)}) : Json::array()}};
+}
+
+Json report(std::vector<Json> assets, const Json& shard = nullptr) {
+  Json list = Json::array();
+  for (Json& a : assets) list.push_back(std::move(a));
+  return {{"lodforge_version", "0.1.0"},
+          {"config_file", "c.json"},
+          {"effective_config", {{"version", 1}}},
+          {"jobs", 2},
+          {"shard", shard},
+          {"summary", report_summary(list, 1.5)},
+          {"assets", list}};
+}
+
+TEST(Report, SummaryCountsStatusesLodsAndTriangles) {
+  const Json r = report({asset("a"), asset("b", "failed"), asset("c")});
+  EXPECT_EQ(r["summary"], (Json{{"assets", 3},
+                                {"succeeded", 2},
+                                {"failed", 1},
+                                {"skipped", 0},
+                                {"cache_hits", 0},
+                                {"lods", 2},
+                                {"input_triangles", 200},
+                                {"output_triangles", 100},
+                                {"seconds", 1.5}}));
+  EXPECT_TRUE(check_report(r).empty());
+}
+
+TEST(Report, CheckNamesEveryShapeProblem) {
+  Json r = report({asset("b"), asset("a")});
+  r["assets"][1]["lods"][0]["ratio"] = "half";
+  r["assets"][0]["status"] = "done";
+  r["summary"].erase("lods");
+  r.erase("jobs");
+  const std::vector<std::string> problems = check_report(r);
+  const std::vector<std::string> expected = {"jobs: missing", "summary.lods: missing",
+                                             "assets[0].status: expected ok, failed or skipped",
+                                             "assets[1].path: assets are not sorted by path (or a path repeats)",
+                                             "assets[1].lods[0].ratio: expected a number"};
+  EXPECT_EQ(problems, expected);
+}
+
+TEST(Report, WithoutTimingsDropsEverySecondsField) {
+  const Json r = without_timings(report({asset("a")}));
+  EXPECT_FALSE(r["summary"].contains("seconds"));
+  EXPECT_FALSE(r["assets"][0].contains("seconds"));
+  EXPECT_FALSE(r["assets"][0]["lods"][0].contains("seconds"));
+  EXPECT_TRUE(r["assets"][0]["lods"][0].contains("triangles"));
+}
+
+TEST(Report, MergeSortsAssetsAndRecomputesTheSummary) {
+  const Json merged = merge_reports({report({asset("a"), asset("c")}, "0/2"), report({asset("b", "failed")}, "1/2")});
+  ASSERT_EQ(merged["assets"].size(), 3u);
+  EXPECT_EQ(merged["assets"][0]["path"], "a");
+  EXPECT_EQ(merged["assets"][2]["path"], "c");
+  EXPECT_TRUE(merged["shard"].is_null());
+  EXPECT_EQ(merged["summary"]["failed"], 1);
+  EXPECT_EQ(merged["summary"]["seconds"], 1.5) << "the slowest shard";
+}
+
+TEST(Report, MergeRefusesMismatchedOrOverlappingReports) {
+  const Json a = report({asset("a")}, "0/2");
+  Json other_config = report({asset("b")}, "1/2");
+  other_config["effective_config"]["version"] = 2;
+  EXPECT_THROW(merge_reports({a, other_config}), std::invalid_argument);
+  EXPECT_THROW(merge_reports({a, a}), std::invalid_argument);
+  EXPECT_THROW(merge_reports({}), std::invalid_argument);
+  Json broken = a;
+  broken.erase("assets");
+  EXPECT_THROW(merge_reports({broken}), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace lodforge::batch

@@ -1,0 +1,417 @@
+// The batch runner on a generated library of ~200 small assets (library_fixture.hpp): every LOD written within
+// budget, a well-formed report, identical bytes for any job count, incremental re-runs, failure isolation,
+// resuming a stopped run, sharding, duplicate reuse, and MSFT_lod output that passes the Khronos validator.
+#include "lodforge/batch/runner.hpp"
+
+#include <gtest/gtest.h>
+
+#include <set>
+
+#include "library_fixture.hpp"
+#include "lodforge/batch/cache.hpp"
+#include "lodforge/batch/config.hpp"
+#include "lodforge/batch/report.hpp"
+#include "lodforge/batch/shard.hpp"
+
+namespace lodforge::batch {
+namespace {
+
+namespace fs = std::filesystem;
+using Json = nlohmann::json;
+
+BatchConfig config(const std::string& gltf_lods = "msft_lod") {
+  return parse_config(Json::parse(testlib::config_text(gltf_lods)), "test config");
+}
+
+RunResult run(const fs::path& lib, const fs::path& out, unsigned jobs, const BatchConfig& cfg = config()) {
+  return run_batch(cfg, {.config_file = "test config", .input_dir = lib, .output_dir = out, .jobs = jobs});
+}
+
+const Json& record_of(const Json& report, const std::string& path) {
+  for (const Json& a : report["assets"]) {
+    if (a["path"] == path) return a;
+  }
+  static const Json kNone;
+  ADD_FAILURE() << "no record for " << path;
+  return kNone;
+}
+
+// Reports of two runs of the same work agree on everything but timings and the job count.
+Json comparable(Json report) {
+  report["jobs"] = 0;
+  return without_timings(std::move(report));
+}
+
+TEST(BatchRunner, WritesEveryLodWithinItsBudget) {
+  const fs::path dir = testing::temp_dir("batch_runner_budgets");
+  const testlib::Library lib = testlib::write_library(dir / "lib");
+  const BatchConfig cfg = config();
+  const RunResult r = run(lib.root, dir / "out", 2, cfg);
+
+  EXPECT_EQ(r.succeeded, lib.files.size());
+  EXPECT_EQ(r.failed, 0u);
+  EXPECT_TRUE(r.failures.empty());
+  const std::vector<std::string> problems = check_report(r.report);
+  EXPECT_TRUE(problems.empty()) << problems.front();
+  EXPECT_EQ(r.report["assets"].size(), lib.files.size());
+  // report.json on disk is the same document, and report.html exists.
+  EXPECT_EQ(Json::parse(io::read_file(dir / "out/report.json")), r.report);
+  EXPECT_TRUE(fs::is_regular_file(dir / "out/report.html"));
+  EXPECT_EQ(r.report["summary"]["lods"].get<std::size_t>(), [&] {
+    std::size_t n = 0;
+    for (const Json& a : r.report["assets"]) n += a["lods"].size();
+    return n;
+  }());
+
+  for (const Json& a : r.report["assets"]) {
+    const std::string path = a["path"];
+    SCOPED_TRACE(path);
+    ASSERT_EQ(a["status"], "ok") << a["error"];
+    const AssetClass* cls = find_class(cfg, a["class"].get<std::string>());
+    ASSERT_NE(cls, nullptr);
+    ASSERT_EQ(a["lods"].size(), cls->lods.size());
+    const std::size_t source = a["input"]["triangles"];
+    std::size_t previous = source;
+    for (const Json& l : a["lods"]) {
+      const std::size_t tris = l["triangles"];
+      EXPECT_GT(tris, 0u);
+      EXPECT_LE(tris, previous) << "LOD chains never grow";
+      previous = l["from"] == "previous" ? tris : previous;
+      if (l["target_triangles"].is_number()) {
+        const std::size_t target = l["target_triangles"];
+        // An edge collapse removes two triangles (one at a border): the count lands on the target or one below,
+        // unless the simplifier says it stopped early.
+        EXPECT_LE(tris, std::max<std::size_t>(target, 1) + (l["stop_reason"] == "target_reached" ? 0 : source));
+        if (l["stop_reason"] == "target_reached") {
+          EXPECT_GE(tris + 2, target);
+        }
+      } else {
+        EXPECT_LE(l["error_bound_rel"].get<double>(), 0.03 + 1e-9) << "error target respected";
+      }
+      EXPECT_GE(l["hausdorff_rel"].get<double>(), 0.0);
+      EXPECT_GT(l["screen_coverage"].get<double>(), 0.0);
+    }
+    // Outputs: a MSFT_lod glTF for glTF sources, one file per LOD otherwise; all exist.
+    ASSERT_FALSE(a["outputs"].empty());
+    for (const Json& o : a["outputs"]) EXPECT_TRUE(fs::is_regular_file(dir / "out" / o.get<std::string>())) << o;
+    const fs::path rel(path);
+    const std::string ext = rel.extension().string();
+    if (ext == ".gltf" || ext == ".glb") {
+      EXPECT_NE(std::find(a["outputs"].begin(), a["outputs"].end(), path), a["outputs"].end());
+    } else {
+      for (std::size_t k = 1; k <= cls->lods.size(); ++k) {
+        const std::string name = (rel.parent_path() / lod_file_name(rel.filename(), k)).generic_string();
+        EXPECT_NE(std::find(a["outputs"].begin(), a["outputs"].end(), name), a["outputs"].end()) << name;
+        // The LOD file holds what the report says.
+        EXPECT_EQ(io::load_asset(dir / "out" / name).meshes.at(0).triangle_count(),
+                  a["lods"][k - 1]["triangles"].get<std::size_t>());
+      }
+    }
+  }
+  EXPECT_TRUE(testlib::leftovers(dir / "out").empty());
+}
+
+TEST(BatchRunner, SameBytesForAnyJobCount) {
+  const fs::path dir = testing::temp_dir("batch_runner_jobs");
+  const testlib::Library lib = testlib::write_library(dir / "lib");
+  // One asset large enough that the simplifier and eval run their own parallel loops inside it.
+  io::save_asset(testlib::asset_of({testing::make_uv_sphere(110, 130)}, io::Format::glb), lib.root / "props/big.glb");
+  const RunResult one = run(lib.root, dir / "j1", 1);
+  const RunResult two = run(lib.root, dir / "j2", 2);
+  const RunResult three = run(lib.root, dir / "j3", 3);  // more threads than cores
+  const auto a = testlib::read_outputs(dir / "j1");
+  EXPECT_EQ(a.size(), testlib::read_outputs(dir / "j2").size());
+  EXPECT_TRUE(a == testlib::read_outputs(dir / "j2"));
+  EXPECT_TRUE(a == testlib::read_outputs(dir / "j3"));
+  EXPECT_EQ(comparable(one.report), comparable(two.report));
+  EXPECT_EQ(comparable(one.report), comparable(three.report));
+  EXPECT_EQ(one.report["jobs"], 1);
+  EXPECT_EQ(two.report["jobs"], 2);
+  EXPECT_GT(record_of(two.report, "props/big.glb")["input"]["triangles"].get<std::size_t>(), 20000u);
+}
+
+TEST(BatchRunner, SecondRunIsAllCacheHitsAndTouchingOneFileRedoesOne) {
+  const fs::path dir = testing::temp_dir("batch_runner_cache");
+  const testlib::Library lib = testlib::write_library(dir / "lib");
+  const RunResult first = run(lib.root, dir / "out", 2);
+  const auto bytes = testlib::read_outputs(dir / "out");
+  EXPECT_EQ(first.cache_hits, 0u);
+
+  const RunResult second = run(lib.root, dir / "out", 2);
+  EXPECT_EQ(second.cache_hits, lib.files.size());
+  EXPECT_EQ(second.succeeded, lib.files.size());
+  EXPECT_EQ(second.input_triangles, 0u) << "nothing was simplified";
+  EXPECT_TRUE(bytes == testlib::read_outputs(dir / "out"));
+  // A cache hit reports the stored record: the same as the run that made it, but for cache_hit and timings.
+  Json expected = comparable(first.report);
+  for (Json& a : expected["assets"]) a["cache_hit"] = true;
+  expected["summary"]["cache_hits"] = lib.files.size();
+  EXPECT_EQ(comparable(second.report), expected);
+
+  // Touch one asset: a different mesh under the same name.
+  const std::string touched = "env/patch_90.off";
+  io::save_asset(testlib::asset_of({testlib::make_terrain(20, 7)}, io::Format::off), lib.root / touched);
+  const RunResult third = run(lib.root, dir / "out", 2);
+  EXPECT_EQ(third.cache_hits, lib.files.size() - 1);
+  for (const Json& a : third.report["assets"]) EXPECT_EQ(a["cache_hit"], a["path"] != touched) << a["path"];
+  EXPECT_EQ(record_of(third.report, touched)["input"]["triangles"], 800);
+
+  // Touching a file without changing it redoes nothing: the key is the content, not the time stamp.
+  fs::last_write_time(lib.root / "props/prop_0.obj", fs::file_time_type::clock::now());
+  EXPECT_EQ(run(lib.root, dir / "out", 2).cache_hits, lib.files.size());
+
+  // --force rebuilds everything, to the same bytes.
+  const auto before_force = testlib::read_outputs(dir / "out");
+  const RunResult forced =
+      run_batch(config(), {.input_dir = lib.root, .output_dir = dir / "out", .jobs = 2, .force = true});
+  EXPECT_EQ(forced.cache_hits, 0u);
+  EXPECT_TRUE(before_force == testlib::read_outputs(dir / "out"));
+}
+
+TEST(BatchRunner, ChangingOneClassRedoesOnlyItsAssets) {
+  const fs::path dir = testing::temp_dir("batch_runner_class_change");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 30);
+  run(lib.root, dir / "out", 2);
+  Json doc = Json::parse(testlib::config_text());
+  doc["classes"][1]["lods"][1]["triangles"] = 50;  // environment only
+  const RunResult r = run(lib.root, dir / "out", 2, parse_config(doc));
+  for (const Json& a : r.report["assets"]) EXPECT_EQ(a["cache_hit"], a["class"] != "environment") << a["path"];
+}
+
+TEST(BatchRunner, CorruptAssetsFailAloneAndAreReported) {
+  const fs::path dir = testing::temp_dir("batch_runner_corrupt");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 40);
+  std::ofstream(lib.root / "props/broken.obj") << "v 0 0 0\nv 1 0 0\nf 1 2 9\n";  // index out of range
+  std::ofstream(lib.root / "chars/truncated.glb", std::ios::binary) << "glTF\x02\0\0\0";
+  std::ofstream(lib.root / "env/empty.ply") << "";
+  const RunResult r = run(lib.root, dir / "out", 2);
+  EXPECT_EQ(r.failed, 3u);
+  EXPECT_EQ(r.succeeded, lib.files.size());
+  ASSERT_EQ(r.failures.size(), 3u);
+  EXPECT_EQ(r.failures[0].rfind("chars/truncated.glb: ", 0), 0u) << r.failures[0];
+  EXPECT_EQ(r.failures[1].rfind("env/empty.ply: ", 0), 0u) << r.failures[1];
+  EXPECT_EQ(r.failures[2].rfind("props/broken.obj: ", 0), 0u) << r.failures[2];
+  const Json& broken = record_of(r.report, "props/broken.obj");
+  EXPECT_EQ(broken["status"], "failed");
+  EXPECT_TRUE(broken["error"].is_string());
+  EXPECT_TRUE(broken["outputs"].empty());
+  EXPECT_FALSE(fs::exists(dir / "out/props/broken_LOD1.obj"));
+  EXPECT_TRUE(check_report(r.report).empty());
+  EXPECT_EQ(r.report["summary"]["failed"], 3);
+  EXPECT_TRUE(testlib::leftovers(dir / "out").empty());
+  // Failures are not cached: the next run tries them again (and the good assets are hits).
+  const RunResult again = run(lib.root, dir / "out", 2);
+  EXPECT_EQ(again.failed, 3u);
+  EXPECT_EQ(again.cache_hits, lib.files.size());
+}
+
+TEST(BatchRunner, StoppedRunResumesToIdenticalOutput) {
+  const fs::path dir = testing::temp_dir("batch_runner_resume");
+  const testlib::Library lib = testlib::write_library(dir / "lib");
+  run(lib.root, dir / "clean", 2);
+
+  const RunResult stopped =
+      run_batch(config(), {.input_dir = lib.root, .output_dir = dir / "out", .jobs = 2, .stop_after = 60});
+  EXPECT_TRUE(stopped.cancelled);
+  EXPECT_EQ(stopped.succeeded, 60u);
+  EXPECT_EQ(stopped.skipped, lib.files.size() - 60);
+  EXPECT_TRUE(check_report(stopped.report).empty());
+  EXPECT_TRUE(testlib::leftovers(dir / "out").empty());
+  // What a kill in the middle of writing leaves: a staged half-asset and an entry's temporary file.
+  const fs::path staging = dir / "out" / kCacheFolder / "staging-0-of-1" / "0123456789abcdef";
+  fs::create_directories(staging);
+  std::ofstream(staging / "prop_77_LOD1.obj") << "v 0 0";
+  const std::string victim = "props/prop_0.obj";
+  char name[40];
+  std::snprintf(name, sizeof name, "%016llx.json.tmp-1-0", static_cast<unsigned long long>(path_hash(victim)));
+  std::ofstream(dir / "out" / kCacheFolder / "entries" / name) << "{";
+  ASSERT_FALSE(testlib::leftovers(dir / "out").empty());
+
+  const RunResult resumed = run(lib.root, dir / "out", 2);
+  EXPECT_EQ(resumed.cache_hits, 60u);
+  EXPECT_EQ(resumed.succeeded, lib.files.size());
+  EXPECT_FALSE(resumed.cancelled);
+  EXPECT_TRUE(testlib::leftovers(dir / "out").empty()) << testlib::leftovers(dir / "out").front();
+  EXPECT_TRUE(testlib::read_outputs(dir / "clean") == testlib::read_outputs(dir / "out"));
+}
+
+TEST(BatchRunner, CancelFlagStopsAdmittingAssets) {
+  const fs::path dir = testing::temp_dir("batch_runner_cancel");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 40);
+  std::atomic<bool> cancel{false};
+  RunOptions options{.input_dir = lib.root, .output_dir = dir / "out", .jobs = 1};
+  options.cancel = &cancel;
+  options.on_asset_done = [&](const AssetDone& d) {
+    if (d.done == 5) cancel = true;
+  };
+  const RunResult r = run_batch(config(), options);
+  EXPECT_TRUE(r.cancelled);
+  EXPECT_GE(r.succeeded, 5u);
+  EXPECT_LT(r.succeeded, 10u) << "only the assets already in flight finish";
+  EXPECT_EQ(r.succeeded + r.skipped, lib.files.size());
+}
+
+TEST(BatchRunner, ThreeShardsMergeToTheUnshardedReport) {
+  const fs::path dir = testing::temp_dir("batch_runner_shards");
+  const testlib::Library lib = testlib::write_library(dir / "lib");
+  const RunResult whole = run(lib.root, dir / "whole", 2);
+  std::vector<Json> reports;
+  std::size_t assets = 0;
+  for (std::uint32_t k = 0; k < 3; ++k) {
+    // All shards write into one folder, as on a shared file system.
+    const RunResult r = run_batch(config(), {.config_file = "test config",
+                                             .input_dir = lib.root,
+                                             .output_dir = dir / "sharded",
+                                             .jobs = 2,
+                                             .shard = Shard{k, 3}});
+    EXPECT_EQ(r.report["shard"], std::to_string(k) + "/3");
+    EXPECT_EQ(r.report_path.filename(), "report.shard-" + std::to_string(k) + "-of-3.json");
+    EXPECT_GT(r.report["assets"].size(), 30u) << "the hash spreads the library";
+    assets += r.report["assets"].size();
+    reports.push_back(r.report);
+  }
+  EXPECT_EQ(assets, lib.files.size());
+  const Json merged = merge_reports(reports);
+  EXPECT_TRUE(check_report(merged).empty());
+  EXPECT_EQ(comparable(merged), comparable(whole.report));
+  EXPECT_TRUE(testlib::read_outputs(dir / "whole") == testlib::read_outputs(dir / "sharded"));
+  EXPECT_THROW(merge_reports({reports[0], reports[0]}), std::invalid_argument) << "an asset twice";
+}
+
+TEST(BatchRunner, DuplicateMeshesAreSimplifiedOnce) {
+  const fs::path dir = testing::temp_dir("batch_runner_duplicates");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 12);
+  const RunResult r = run(lib.root, dir / "out", 2);
+  const Json& a = record_of(r.report, "props/dup_a.obj");
+  const Json& b = record_of(r.report, "props/dup_b.obj");
+  ASSERT_EQ(a["lods"].size(), 3u);
+  for (std::size_t k = 0; k < 3; ++k) {
+    // The second copy reuses the first's chain, simplifier timings included (two separate runs would not
+    // measure the same nanoseconds).
+    EXPECT_EQ(a["lods"][k]["seconds"], b["lods"][k]["seconds"]);
+    EXPECT_EQ(a["lods"][k]["triangles"], b["lods"][k]["triangles"]);
+  }
+  EXPECT_EQ(io::read_file(dir / "out/props/dup_a_LOD2.obj"), io::read_file(dir / "out/props/dup_b_LOD2.obj"));
+}
+
+TEST(BatchRunner, UnmatchedAssetsAreSkippedWithTheReason) {
+  const fs::path dir = testing::temp_dir("batch_runner_unmatched");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 10);
+  io::save_asset(testlib::asset_of({testing::make_tetrahedron()}, io::Format::obj), lib.root / "misc.obj");
+  const RunResult r = run(lib.root, dir / "out", 2);
+  const Json& misc = record_of(r.report, "misc.obj");
+  EXPECT_EQ(misc["status"], "skipped");
+  EXPECT_TRUE(misc["class"].is_null());
+  EXPECT_NE(misc["error"].get<std::string>().find("matches no class"), std::string::npos);
+  EXPECT_EQ(r.skipped, 1u);
+  EXPECT_EQ(r.failed, 0u);
+}
+
+TEST(BatchRunner, GltfLodModesWriteTheRightFiles) {
+  const fs::path dir = testing::temp_dir("batch_runner_gltf_modes");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 12);
+  for (const std::string mode : {"files", "both"}) {
+    const RunResult r = run(lib.root, dir / mode, 2, config(mode));
+    for (const Json& a : r.report["assets"]) {
+      const fs::path rel(a["path"].get<std::string>());
+      if (rel.extension() != ".glb" && rel.extension() != ".gltf") continue;
+      const auto& outs = a["outputs"];
+      auto has = [&](const fs::path& p) {
+        return std::find(outs.begin(), outs.end(), p.generic_string()) != outs.end();
+      };
+      EXPECT_EQ(has(rel), mode == "both") << rel;
+      EXPECT_TRUE(has(rel.parent_path() / lod_file_name(rel.filename(), 1))) << rel;
+      EXPECT_TRUE(has(rel.parent_path() / lod_file_name(rel.filename(), 2))) << rel;
+      if (rel.extension() == ".gltf") {
+        EXPECT_TRUE(has(rel.parent_path() / (rel.stem().string() + "_LOD1.bin")));
+      }
+    }
+  }
+}
+
+TEST(BatchRunner, MsftLodOutputsPassTheValidator) {
+  const fs::path dir = testing::temp_dir("batch_runner_validator");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 200);
+  const RunResult r = run(lib.root, dir / "out", 2);
+  std::vector<fs::path> files;
+  for (const Json& a : r.report["assets"]) {
+    const fs::path rel(a["path"].get<std::string>());
+    if (rel.extension() != ".glb" && rel.extension() != ".gltf") continue;
+    const fs::path out = dir / "out" / rel;
+    files.push_back(out);
+    const Json doc = testlib::gltf_json(out);
+    SCOPED_TRACE(rel.string());
+    EXPECT_NE(std::find(doc["extensionsUsed"].begin(), doc["extensionsUsed"].end(), "MSFT_lod"),
+              doc["extensionsUsed"].end());
+    const std::size_t meshes = io::load_asset(lib.root / rel).meshes.size();
+    const std::size_t levels = a["lods"].size();
+    ASSERT_EQ(doc["meshes"].size(), meshes * (1 + levels)) << "LOD0 plus its LODs, per mesh";
+    std::size_t with_lods = 0;
+    for (const Json& node : doc["nodes"]) {
+      if (!node.contains("extensions")) continue;
+      ++with_lods;
+      const Json& ids = node["extensions"]["MSFT_lod"]["ids"];
+      ASSERT_EQ(ids.size(), levels);
+      const Json& coverage = node["extras"]["MSFT_screencoverage"];
+      ASSERT_EQ(coverage.size(), levels + 1);
+      for (std::size_t k = 1; k <= levels; ++k) EXPECT_GE(coverage[k - 1].get<double>(), coverage[k].get<double>());
+      EXPECT_EQ(coverage[levels].get<double>(), 0.0);
+      EXPECT_EQ(coverage[0].get<double>(), a["lods"][0]["screen_coverage"].get<double>());
+      for (const Json& id : ids) EXPECT_TRUE(doc["nodes"][id.get<std::size_t>()].contains("mesh"));
+    }
+    EXPECT_EQ(with_lods, meshes);
+  }
+  ASSERT_GT(files.size(), 50u);
+  if (const std::string why = testlib::validator_unavailable(); !why.empty()) GTEST_SKIP() << why;
+  const testlib::Validation v = testlib::validate_gltf(files);
+  EXPECT_EQ(v.exit_code, 0) << v.output;
+}
+
+TEST(BatchRunner, MissingInputFolderThrows) {
+  const fs::path dir = testing::temp_dir("batch_runner_missing");
+  EXPECT_THROW(run(dir / "nope", dir / "out", 1), io::IoError);
+}
+
+TEST(BatchRunner, OutputFolderInsideTheLibraryIsNotScanned) {
+  const fs::path dir = testing::temp_dir("batch_runner_nested_output");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 6);
+  const RunResult first = run(lib.root, lib.root / "lods", 1);
+  EXPECT_EQ(first.report["assets"].size(), lib.files.size());
+  const RunResult second = run(lib.root, lib.root / "lods", 1);
+  EXPECT_EQ(second.report["assets"].size(), lib.files.size()) << "the LODs of the first run are not assets";
+  EXPECT_EQ(second.cache_hits, lib.files.size());
+  EXPECT_THROW(run(lib.root, lib.root, 1), io::IoError);
+}
+
+TEST(BatchRunner, ScanListsSupportedFilesSortedAndSkipsTheCache) {
+  const fs::path dir = testing::temp_dir("batch_runner_scan");
+  fs::create_directories(dir / "b/c");
+  fs::create_directories(dir / kCacheFolder / "staging-0-of-1");
+  for (const char* f : {"b/c/z.obj", "a.GLB", "b/readme.txt", "b/x.ply", ".lodforge-cache/staging-0-of-1/q.obj"}) {
+    std::ofstream(dir / f) << "x";
+  }
+  EXPECT_EQ(scan_library(dir), (std::vector<std::string>{"a.GLB", "b/c/z.obj", "b/x.ply"}));
+}
+
+TEST(BatchRunner, ParsesByteSizes) {
+  EXPECT_EQ(parse_byte_size("4G"), 4ull << 30);
+  EXPECT_EQ(parse_byte_size("512M"), 512ull << 20);
+  EXPECT_EQ(parse_byte_size("1.5k"), 1536u);
+  EXPECT_EQ(parse_byte_size("100000"), 100000u);
+  EXPECT_EQ(parse_byte_size("2GiB"), 2ull << 30);
+  for (const char* bad : {"", "G", "-1G", "4X", "abc", "0"})
+    EXPECT_THROW(parse_byte_size(bad), std::invalid_argument) << bad;
+  EXPECT_GT(default_memory_limit(), 0u);
+}
+
+TEST(BatchRunner, TightMemoryLimitStillFinishes) {
+  // A budget below one asset's footprint admits one asset at a time, and everything still runs.
+  const fs::path dir = testing::temp_dir("batch_runner_memory");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 20);
+  const RunResult r =
+      run_batch(config(), {.input_dir = lib.root, .output_dir = dir / "out", .jobs = 2, .memory_limit_bytes = 1});
+  EXPECT_EQ(r.succeeded, lib.files.size());
+}
+
+}  // namespace
+}  // namespace lodforge::batch
