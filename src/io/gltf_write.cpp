@@ -737,29 +737,42 @@ void set_morph_weights(OrderedJson& jmesh, const Mesh& mesh) {
 // For an asset without a glTF source (OBJ, PLY, ...): one scene, a node and a mesh per non-empty Mesh, a
 // primitive per material slot, a default material per distinct slot name.
 // `json_mesh` receives, per asset mesh, the index of the glTF mesh written for it (-1 for one without faces).
+// Index of the material named `name` in `materials` (the "materials" array of a document written without a glTF
+// source, where a material is named after its mesh slot), appended when missing.
+int material_by_name(OrderedJson& materials, const std::string& name) {
+  for (std::size_t i = 0; i < materials.size(); ++i) {
+    if (materials[i].value("name", std::string()) == name) return static_cast<int>(i);
+  }
+  // Not metallic: glTF's default metallicFactor 1 renders an untextured mesh black.
+  materials.push_back({{"name", name}, {"pbrMetallicRoughness", {{"metallicFactor", 0.0}}}});
+  return static_cast<int>(materials.size() - 1);
+}
+
+// The primitives of asset mesh m written without a glTF source: one per slot with faces (none when no slot has
+// faces), each with the material named after its slot.
+OrderedJson built_primitives(const Mesh& mesh, std::size_t m, OrderedJson& materials, DataBuilder& data,
+                             const std::filesystem::path& path) {
+  const std::vector<SlotGeometry> geometry = split_by_slot(mesh, m, path);
+  PrimitiveWriter writer(mesh, nullptr, m, data, path);
+  OrderedJson prims = OrderedJson::array();
+  for (std::size_t s = 0; s < geometry.size(); ++s) {
+    if (geometry[s].indices.empty()) continue;
+    const MaterialSlot* slot = s < mesh.materials.size() ? &mesh.materials[s] : nullptr;
+    const std::string name = slot && !slot->name.empty() ? slot->name : "default";
+    prims.push_back(writer.write(slot, geometry[s], nullptr, material_by_name(materials, name)));
+  }
+  return prims;
+}
+
 OrderedJson build_document(const Asset& asset, DataBuilder& data, const std::filesystem::path& path,
                            std::vector<int>& json_mesh) {
   json_mesh.assign(asset.meshes.size(), -1);
   OrderedJson doc = OrderedJson::object();
   doc["asset"] = {{"version", "2.0"}, {"generator", "lodforge"}};
   OrderedJson nodes = OrderedJson::array(), meshes = OrderedJson::array(), materials = OrderedJson::array();
-  std::map<std::string, int> material_of;
   for (std::size_t m = 0; m < asset.meshes.size(); ++m) {
     const Mesh& mesh = asset.meshes[m];
-    const std::vector<SlotGeometry> geometry = split_by_slot(mesh, m, path);
-    PrimitiveWriter writer(mesh, nullptr, m, data, path);
-    OrderedJson prims = OrderedJson::array();
-    for (std::size_t s = 0; s < geometry.size(); ++s) {
-      if (geometry[s].indices.empty()) continue;
-      const MaterialSlot* slot = s < mesh.materials.size() ? &mesh.materials[s] : nullptr;
-      const std::string name = slot && !slot->name.empty() ? slot->name : "default";
-      auto [it, inserted] = material_of.emplace(name, static_cast<int>(materials.size()));
-      if (inserted) {
-        // Not metallic: glTF's default metallicFactor 1 renders an untextured mesh black.
-        materials.push_back({{"name", name}, {"pbrMetallicRoughness", {{"metallicFactor", 0.0}}}});
-      }
-      prims.push_back(writer.write(slot, geometry[s], nullptr, it->second));
-    }
+    OrderedJson prims = built_primitives(mesh, m, materials, data, path);
     if (prims.empty()) continue;
     json_mesh[m] = static_cast<int>(meshes.size());
     OrderedJson jmesh = OrderedJson::object();
@@ -845,34 +858,6 @@ void patch_meshes(const Asset& asset, const GltfDocument& source, OrderedJson& d
 // ---------------------------------------------------------------------------------------------------------------
 // MSFT_lod: LOD meshes and the LOD nodes that show them (see lods.hpp for the layout).
 
-// Index of the material named `name` in a document built by build_document, added when missing.
-int material_by_name(OrderedJson& doc, const std::string& name) {
-  OrderedJson& materials = doc["materials"];
-  for (std::size_t i = 0; i < materials.size(); ++i) {
-    if (materials[i].value("name", std::string()) == name) return static_cast<int>(i);
-  }
-  materials.push_back({{"name", name}, {"pbrMetallicRoughness", {{"metallicFactor", 0.0}}}});
-  return static_cast<int>(materials.size() - 1);
-}
-
-// The primitives of a LOD mesh of an asset without a glTF source: one per non-empty slot, as build_document.
-OrderedJson write_built_primitives(const Mesh& mesh, std::size_t m, OrderedJson& doc, DataBuilder& data,
-                                   const std::filesystem::path& path) {
-  const std::vector<SlotGeometry> geometry = split_by_slot(mesh, m, path);
-  PrimitiveWriter writer(mesh, nullptr, m, data, path);
-  OrderedJson prims = OrderedJson::array();
-  for (std::size_t s = 0; s < geometry.size(); ++s) {
-    if (geometry[s].indices.empty()) continue;
-    const MaterialSlot* slot = s < mesh.materials.size() ? &mesh.materials[s] : nullptr;
-    const std::string name = slot && !slot->name.empty() ? slot->name : "default";
-    prims.push_back(writer.write(slot, geometry[s], nullptr, material_by_name(doc, name)));
-  }
-  if (prims.empty()) {
-    throw IoError(path, "LOD of mesh " + std::to_string(m) + " has no faces; a glTF mesh needs at least one primitive");
-  }
-  return prims;
-}
-
 // `json_mesh[m]`: the glTF mesh index showing asset mesh m (-1 when it has none, e.g. a mesh without faces).
 void add_lods(const Asset& asset, const LodChain& lods, const std::vector<int>& json_mesh, OrderedJson& doc,
               DataBuilder& data, const std::filesystem::path& path) {
@@ -892,7 +877,11 @@ void add_lods(const Asset& asset, const LodChain& lods, const std::vector<int>& 
         const OrderedJson& old = json_array(json_array(source->json, "meshes")[m], "primitives");
         jmesh["primitives"] = write_primitives(lod, *source, m, old, doc, data, path);
       } else {
-        jmesh["primitives"] = write_built_primitives(lod, m, doc, data, path);
+        jmesh["primitives"] = built_primitives(lod, m, doc["materials"], data, path);
+        if (jmesh["primitives"].empty()) {
+          throw IoError(path, "LOD " + std::to_string(k + 1) + " of mesh " + std::to_string(m) +
+                                  " has no faces; a glTF mesh needs at least one primitive");
+        }
       }
       if (base.contains("weights")) jmesh["weights"] = base["weights"];
       set_morph_weights(jmesh, lod);
