@@ -2,9 +2,16 @@
 # Sets up (installs what is missing, builds; see scripts/setup.sh) and runs the benchmarks of tests/bench.
 # Benchmarks are never part of the tests: they print numbers and MET / NOT MET lines, and exit 0 whatever they say.
 #
-#   scripts/bench.sh [ARGS...]            both benchmarks; ARGS go to lodforge_bench_simplify
+#   scripts/bench.sh [ARGS...]            all three benchmarks; ARGS go to lodforge_bench_simplify
 #   scripts/bench.sh simplify [ARGS...]   only lodforge_bench_simplify
 #   scripts/bench.sh load [ARGS...]       only lodforge_bench_load
+#   scripts/bench.sh batch [ARGS...]      only lodforge_bench_batch (the batch targets of issue 5)
+#   scripts/bench.sh attributes [ARGS...] only lodforge_bench_attributes (attribute-aware vs position-only lodforge vs
+#                                         meshopt on the glTF corpus at 50/25/10%: distance, UV flips, chart spans,
+#                                         attribute RMS, throughput; --ratios, --reps N, --eval-samples N, --corpus DIR)
+#   scripts/bench.sh quad [ARGS...]       only lodforge_bench_quad (polychord engine vs edge_collapse and meshopt on
+#                                         the quad corpus at 50/25/10%, plus a generated 100k-quad torus; --ratios,
+#                                         --mesh FILE, --input DIR, --generated-quads N, --no-generated)
 #
 # lodforge_bench_simplify (lodforge vs meshoptimizer vs OpenMesh Decimater: speed, peak memory, quality):
 #   --quick                  fast subset (bunny, dragon, buddha, lucy; ratios 0.1,0.02,0.01; 500k generated mesh;
@@ -23,6 +30,12 @@
 #   every --benchmark_* flag; JSON report: $BUILD_DIR/bench/bench-load.json. With `--quick` in the combined mode
 #   the load benchmark runs with --benchmark_min_time=0.1.
 #
+# lodforge_bench_batch (runs `lodforge run` as a child process): jobs 2 vs jobs 1 on the tests' generated library
+#   (target >= 1.8x) and peak RSS under --memory-limit for a library 4x that size. --assets N (200), --reps N (3),
+#   --memory-limit SIZE (32M), --memory-asset-triangles N, --memory-jobs J..., --skip-throughput, --skip-memory,
+#   --quick (1 repetition).
+#   In the combined mode it runs with --quick when --quick is given.
+#
 # Environment: BUILD_DIR (default build), BUILD_TYPE (default Release), BENCH_SKIP_SETUP=1 to skip setup.sh
 # (use an existing build), LOAD_BENCH_ARGS (extra arguments for the load benchmark in the combined mode).
 # Timings are only meaningful on an otherwise idle machine; the simplify benchmark prints the load average.
@@ -35,7 +48,10 @@ if [ "${BENCH_SKIP_SETUP:-0}" != 1 ]; then
 fi
 SIMPLIFY="$BUILD_DIR/tests/bench/lodforge_bench_simplify"
 LOAD="$BUILD_DIR/tests/bench/lodforge_bench_load"
-for b in "$SIMPLIFY" "$LOAD"; do
+BATCH="$BUILD_DIR/tests/bench/lodforge_bench_batch"
+QUAD="$BUILD_DIR/tests/bench/lodforge_bench_quad"
+ATTRIBUTES="$BUILD_DIR/tests/bench/lodforge_bench_attributes"
+for b in "$SIMPLIFY" "$LOAD" "$BATCH" "$QUAD" "$ATTRIBUTES"; do
   if [ ! -x "$b" ]; then
     echo "bench: $b is missing (configure with -DLODFORGE_BUILD_BENCH=ON and build)" >&2
     exit 2
@@ -46,7 +62,7 @@ mkdir -p "$OUT_DIR"
 
 mode=all
 case "${1:-}" in
-  simplify | load) mode=$1; shift ;;
+  simplify | load | batch | quad | attributes) mode=$1; shift ;;
 esac
 
 run_simplify() {
@@ -68,6 +84,9 @@ run_load() {
 case $mode in
   simplify) run_simplify "$@" ;;
   load) run_load "$@" ;;
+  batch) "$BATCH" "$@" ;;
+  quad) "$QUAD" "$@" ;;
+  attributes) "$ATTRIBUTES" --json "$OUT_DIR/bench-attributes.json" "$@" ;;
   all)
     load_args=()
     for a in "$@"; do
@@ -80,5 +99,12 @@ case $mode in
     echo
     echo "== lodforge_bench_load =="
     run_load "${load_args[@]+"${load_args[@]}"}"
+    batch_args=()
+    for a in "$@"; do
+      [ "$a" = --quick ] && batch_args+=(--quick)
+    done
+    echo
+    echo "== lodforge_bench_batch =="
+    "$BATCH" "${batch_args[@]+"${batch_args[@]}"}"
     ;;
 esac

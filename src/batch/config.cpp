@@ -299,6 +299,7 @@ std::string_view enum_name(std::span<const EnumName<E>> names, E value) {
 constexpr EnumName<Engine> kEngineNames[] = {
     {"edge_collapse", Engine::edge_collapse},
     {"multiple_choice", Engine::multiple_choice},
+    {"polychord", Engine::polychord},
 };
 
 constexpr EnumName<BorderMode> kBorderNames[] = {
@@ -504,10 +505,10 @@ const std::vector<Field<LodOptions>>& option_fields() {
       // The same range SimplifyOptions::validate() accepts, so that a valid config never fails there.
       B::count("multiple_choice_k", &SimplifyOptions::multiple_choice_k, 1, 256),
       B::count("max_batch", &SimplifyOptions::max_batch, 0, std::numeric_limits<std::size_t>::max()),
-      B::object("attribute_weights", &PendingOptions::attribute_weights, &attribute_weight_fields),
-      B::flag("permissive", &PendingOptions::permissive),
-      B::text("priority_channel", &PendingOptions::priority_channel, &priority_channel_problem),
-      B::number("skin_weight_threshold", &PendingOptions::skin_weight_threshold, at_least(0).at_most(1)),
+      B::object("attribute_weights", &SimplifyOptions::attribute_weights, &attribute_weight_fields),
+      B::flag("permissive", &SimplifyOptions::permissive),
+      B::text("priority_channel", &SimplifyOptions::priority_channel, &priority_channel_problem),
+      B::number("skin_weight_threshold", &SimplifyOptions::skin_weight_threshold, at_least(0).at_most(1)),
   };
   return fields;
 }

@@ -55,6 +55,7 @@ constexpr Field kLodFields[] = {{"level", Kind::integer},
                                 {"rms_rel", Kind::number},
                                 {"hausdorff_rel", Kind::number},
                                 {"normal_deviation_mean_deg", Kind::number},
+                                {"attributes", Kind::object},
                                 {"stop_reason", Kind::string},
                                 {"seconds", Kind::number},
                                 {"screen_coverage", Kind::number_or_null}};
@@ -203,6 +204,11 @@ std::vector<std::string> check_report(const Json& report) {
       if (!l.is_object()) continue;
       const std::string from = l.value("from", std::string());
       if (from != "previous" && from != "source") out.push_back(lw + ".from: expected previous or source");
+      if (const auto attrs = l.find("attributes"); attrs != l.end() && attrs->is_object()) {
+        for (const auto& [name, value] : attrs->items()) {
+          if (!value.is_number()) out.push_back(lw + ".attributes." + name + ": expected a number");
+        }
+      }
       const auto t = l.find("target");
       if (t == l.end() || !t->is_object() || !t->contains("kind") || !(*t)["kind"].is_string() ||
           !t->contains("value") || !(*t)["value"].is_number()) {

@@ -20,6 +20,9 @@
 #include <tbb/info.h>
 #include <tbb/task_arena.h>
 #include <unistd.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 #include <algorithm>
 #include <bit>
@@ -27,6 +30,7 @@
 #include <cmath>
 #include <cstring>
 #include <deque>
+#include <fstream>
 #include <limits>
 #include <map>
 #include <memory>
@@ -70,6 +74,25 @@ double finite(double x) {
   if (std::isnan(x)) return 0.0;
   if (std::isinf(x)) return x > 0 ? std::numeric_limits<double>::max() : std::numeric_limits<double>::lowest();
   return x;
+}
+
+// Resident memory of this process now (VmRSS), 0 when /proc is not there.
+std::uint64_t resident_bytes() {
+  std::ifstream statm("/proc/self/statm");
+  std::uint64_t size = 0, resident = 0;
+  if (!(statm >> size >> resident)) return 0;
+  return resident * static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
+}
+
+// Hands freed heap memory back to the OS. glibc keeps freed chunks in its arenas (one per thread), so without
+// this the resident size after a large asset stays at its peak and the admission's resident check would see
+// memory nobody uses. Not after the smallest assets (footprint ~ kFootprintOverhead): trimming walks every
+// arena, which would cost more than such an asset's whole chain.
+constexpr std::uint64_t kTrimAfterFootprint = 2u << 20;
+void release_free_memory() {
+#if defined(__GLIBC__)
+  ::malloc_trim(0);
+#endif
 }
 
 // ---- per-mesh LOD chains, shared by duplicates ----------------------------------------------------------------
@@ -248,13 +271,18 @@ struct Pending {
   std::uint64_t footprint = 0;
 };
 
-// Which assets may start: in library order, while the footprints in flight fit the budget.
+// Which assets may start: in library order, while the footprints in flight fit the budget and the process's
+// resident memory plus the next footprint fits the limit. The first check plans (an asset in flight has not
+// reached its peak yet); the second sees what the plan misses (memory the allocator has not returned, the
+// duplicate-chain cache, an estimate that was low). Either way one asset is always allowed, so the run
+// progresses; which assets run together never changes what they produce.
 class Admission {
  public:
-  Admission(std::vector<Pending> pending, std::uint64_t budget, std::size_t max_in_flight,
+  Admission(std::vector<Pending> pending, std::uint64_t budget, std::uint64_t limit, std::size_t max_in_flight,
             const std::atomic<bool>* cancel, std::size_t stop_after)
       : pending_(std::move(pending)),
         budget_(budget),
+        limit_(limit),
         max_in_flight_(max_in_flight),
         cancel_(cancel),
         stop_after_(stop_after) {}
@@ -262,10 +290,16 @@ class Admission {
   std::vector<Pending> take() {
     std::lock_guard lock(mutex_);
     std::vector<Pending> out;
+    std::optional<std::uint64_t> resident;  // read once per call, only when an asset is already in flight
     while (next_ < pending_.size()) {
       if ((cancel_ && cancel_->load()) || (stop_after_ && admitted_ >= stop_after_)) break;
       const std::uint64_t fp = pending_[next_].footprint;
-      if (in_flight_ > 0 && (in_flight_ >= max_in_flight_ || reserved_ + fp > budget_)) break;
+      if (in_flight_ > 0) {
+        if (in_flight_ >= max_in_flight_ || reserved_ + fp > budget_) break;
+        if (!resident) resident = resident_bytes();
+        if (*resident + fp > limit_) break;
+        *resident += fp;
+      }
       reserved_ += fp;
       ++in_flight_;
       ++admitted_;
@@ -291,7 +325,7 @@ class Admission {
   std::vector<Pending> pending_;
   std::size_t next_ = 0, in_flight_ = 0, admitted_ = 0;
   std::uint64_t reserved_ = 0;
-  std::uint64_t budget_;
+  std::uint64_t budget_, limit_;
   std::size_t max_in_flight_;
   const std::atomic<bool>* cancel_;
   std::size_t stop_after_;
@@ -334,6 +368,18 @@ Json target_triangles_json(const LodTarget& t, std::size_t source_triangles) {
   return nullptr;
 }
 
+// The LOD record's "attributes" object: what eval measures of the LOD's shading attributes against the source,
+// name -> number. This is the hook for attribute-aware evaluation (eval/attribute_eval.hpp,
+// evaluate_attributes): call it per asset mesh on the source and LOD meshes (not merged_surface, which keeps
+// positions only) with a sample count capped like kEvalSamples*, fold the meshes together (max), add the
+// numbers here (through finite(), so they stay numbers: per-stream RMS, UV stretch ratio and flip/span counts,
+// pose Hausdorff), name them in report.hpp, and bump kAlgorithmVersion so cached records get them. Only what
+// eval really provides goes in; today that is the face-normal deviation of the surface samples.
+Json attribute_metrics(const EvalResult& e) {
+  return {{"normal_deviation_mean_deg", finite(e.normal_deviation_mean_deg)},
+          {"normal_deviation_p95_deg", finite(e.normal_deviation_p95_deg)}};
+}
+
 // All meshes of an asset as one surface (positions and faces only), for eval: the report measures the asset.
 Mesh merged_surface(const std::vector<const Mesh*>& meshes) {
   Mesh all;
@@ -371,8 +417,8 @@ bool is_gltf(io::Format f) {
 class Pipeline {
  public:
   Pipeline(const BatchConfig& config, const RunOptions& options, const Cache& cache, unsigned jobs,
-           std::uint64_t memory_limit)
-      : config_(config), options_(options), cache_(cache), jobs_(jobs), chains_(memory_limit / 8) {
+           std::uint64_t chain_cache_bytes)
+      : config_(config), options_(options), cache_(cache), jobs_(jobs), chains_(chain_cache_bytes) {
     for (const AssetClass& cls : config.classes) class_json_[&cls] = effective_class_json(config, cls);
   }
 
@@ -502,6 +548,7 @@ class Pipeline {
                       {"rms_rel", finite(e.rms_rel())},
                       {"hausdorff_rel", finite(e.hausdorff_rel())},
                       {"normal_deviation_mean_deg", finite(e.normal_deviation_mean_deg)},
+                      {"attributes", attribute_metrics(e)},
                       {"stop_reason", stop},
                       {"seconds", seconds},
                       {"screen_coverage", coverage}});
@@ -640,7 +687,33 @@ void remove_report_leftovers(const fs::path& output_dir, const std::vector<std::
   for (const fs::path& p : stale) fs::remove(p, ec);
 }
 
+// Peak memory per byte of file, by format: ~1150 bytes per triangle (measured, see runner.hpp above
+// kFootprintOverhead) over the densest encoding of a triangle in the format.
+std::uint64_t footprint_per_file_byte(io::Format format) {
+  switch (format) {
+    case io::Format::gltf:
+    case io::Format::glb:
+      return 96;  // 12 bytes per triangle
+    case io::Format::ply:
+      return 60;  // binary: 12 bytes per vertex (half a vertex per triangle) + 13 per face
+    case io::Format::stl:
+      return 24;  // binary: 50 bytes per triangle
+    default:
+      return 36;  // OBJ, OFF: ~32 characters per triangle at the shortest useful precision
+  }
+}
+
 }  // namespace
+
+std::uint64_t estimate_footprint(const fs::path& file) {
+  io::Format format;
+  try {
+    format = io::format_from_path(file);
+  } catch (const io::IoError&) {
+    return kFootprintOverhead;
+  }
+  return asset_bytes(file) * footprint_per_file_byte(format) + kFootprintOverhead;
+}
 
 std::uint64_t default_memory_limit() {
   const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGESIZE);
@@ -755,14 +828,18 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
       records[i]["error"] = unmatched_reason(config, paths[i]);
       continue;
     }
-    const std::uint64_t size = asset_bytes(options.input_dir / paths[i]);
-    pending.push_back({i, paths[i], cls, size * kFootprintPerFileByte + kFootprintOverhead});
+    pending.push_back({i, paths[i], cls, estimate_footprint(options.input_dir / paths[i])});
   }
 
   RunResult result;
   // One asset in flight per thread. Extra ones would wait as spawned tasks, and TBB runs the newest task
   // first, so they would sit (holding their memory budget) until the end of the run.
-  Admission admission(std::move(pending), memory_limit, jobs, options.cancel, options.stop_after);
+  // The assets' budget is the limit less what the process holds already (code, libraries, the library's path
+  // list) and less the duplicate-chain cache, which lives outside any one asset.
+  const std::uint64_t chain_cache = memory_limit / 8;
+  const std::uint64_t held = resident_bytes() + chain_cache;
+  const std::uint64_t budget = memory_limit > held ? memory_limit - held : 0;
+  Admission admission(std::move(pending), budget, memory_limit, jobs, options.cancel, options.stop_after);
   std::size_t done = static_cast<std::size_t>(
       std::count_if(records.begin(), records.end(), [](const Json& r) { return !r.is_null(); }));
   std::uint64_t triangles_done = 0;
@@ -773,7 +850,7 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
     oversubscribe.emplace(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(jobs));
   }
   tbb::task_arena arena(static_cast<int>(jobs));
-  Pipeline pipeline(config, options, cache, jobs, memory_limit);
+  Pipeline pipeline(config, options, cache, jobs, chain_cache);
   arena.execute([&] {
     namespace flow = tbb::flow;
     flow::graph g;
@@ -820,6 +897,7 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
       job->chains.clear();
       job->sources.clear();
       job->levels.clear();
+      if (footprint >= kTrimAfterFootprint) release_free_memory();
       if (options.on_asset_done) {
         try {
           options.on_asset_done(AssetDone{.record = records[index],

@@ -11,8 +11,10 @@
 
 #include "lodforge/core/topology.hpp"
 #include "lodforge/core/validate.hpp"
+#include "lodforge/eval/attribute_eval.hpp"
 #include "lodforge/eval/eval.hpp"
 #include "lodforge/io/asset.hpp"
+#include "lodforge/quad/quad_stats.hpp"
 #include "lodforge/simplify/simplify.hpp"
 
 namespace lodforge::cli {
@@ -94,6 +96,11 @@ void print_mesh_info(const Mesh& m, std::size_t index) {
                 "%zu non-manifold vertices, %zu component(s), Euler characteristic %lld, %zu seam vertices\n",
                 s.edges, s.boundary_edges, s.boundary_loops, s.non_manifold_edges, s.non_manifold_vertices,
                 s.components, s.euler_characteristic, seam_vertices(m));
+  }
+  if (k.quads > 0) {
+    const quad::QuadStats q = quad::quad_stats(m);
+    std::printf("    quads: quad fraction %.3f, %zu triangles, %zu of %zu interior vertices irregular (valence != 4)\n",
+                q.quad_fraction, q.triangles, q.irregular_vertices, q.interior_vertices);
   }
   if (r.messages.empty()) {
     std::printf("    validation: clean\n");
@@ -178,7 +185,7 @@ void register_simplify(CLI::App& app) {
       ->default_val(0.5);
   cmd->add_option("--triangles", a->opt.target_triangles, "target triangle count (overrides --ratio)");
   cmd->add_option("--max-error", a->max_error_rel, "error budget as a fraction of the bounding-box diagonal");
-  cmd->add_option("--engine", a->engine, "edge_collapse | multiple_choice")->default_val("edge_collapse");
+  cmd->add_option("--engine", a->engine, "edge_collapse | multiple_choice | polychord")->default_val("edge_collapse");
   cmd->add_option("--border", a->border, "free | preserve | lock")->default_val("preserve");
   cmd->add_option("--threads", a->opt.threads, "worker threads (0 = all cores)")->default_val(0);
   cmd->add_option("--seed", a->opt.seed, "random seed (multiple_choice)")->default_val(1);
@@ -188,8 +195,10 @@ void register_simplify(CLI::App& app) {
     opt.max_error_rel = a->max_error_rel;
     if (a->engine == "edge_collapse") opt.engine = Engine::edge_collapse;
     else if (a->engine == "multiple_choice") opt.engine = Engine::multiple_choice;
+    else if (a->engine == "polychord") opt.engine = Engine::polychord;
     else {
-      std::fprintf(stderr, "error: --engine: unknown engine '%s' (edge_collapse | multiple_choice)\n", a->engine.c_str());
+      std::fprintf(stderr, "error: --engine: unknown engine '%s' (edge_collapse | multiple_choice | polychord)\n",
+                   a->engine.c_str());
       set_exit_code(2);
       return;
     }
@@ -216,6 +225,10 @@ void register_simplify(CLI::App& app) {
                     i, r.triangles_before, r.triangles_after, r.error_bound_abs, 100.0 * r.error_bound_rel,
                     stop_reason_name(r.stop_reason),
                     r.timings.setup_ms + r.timings.initial_costs_ms + r.timings.collapse_ms + r.timings.output_ms);
+        if (opt.engine == Engine::polychord) {
+          std::printf("  quads: %zu -> %zu (quad fraction %.3f)\n", r.quads_before, r.quads_after,
+                      quad::quad_stats(r.mesh).quad_fraction);
+        }
         if (a->evaluate) {
           const EvalResult e = evaluate(src, r.mesh, EvalOptions{.threads = opt.threads});
           std::printf("  measured: Hausdorff %.4f%%, mean %.5f%%, RMS %.5f%% of diagonal\n", 100 * e.hausdorff_rel(),
@@ -267,15 +280,47 @@ void register_eval(CLI::App& app) {
         return all;
       };
       const EvalResult r = evaluate(merged(orig), merged(simp), *opt);
+      // Attributes, UVs and skinning per mesh (meshes pair up by index when both assets have as many).
+      std::vector<AttributeEvalResult> attrs;
+      if (orig.meshes.size() == simp.meshes.size()) {
+        for (std::size_t i = 0; i < orig.meshes.size(); ++i) {
+          attrs.push_back(evaluate_attributes(orig.meshes[i], simp.meshes[i],
+                                              {.seed = opt->seed, .threads = opt->threads}));
+        }
+      }
       if (*json) {
         std::printf("{\"hausdorff\": %.9g, \"mean\": %.9g, \"rms\": %.9g, \"diagonal\": %.9g, "
                     "\"hausdorff_rel\": %.9g, \"mean_rel\": %.9g, \"rms_rel\": %.9g, "
                     "\"original_to_simplified\": {\"max\": %.9g, \"mean\": %.9g, \"rms\": %.9g}, "
                     "\"simplified_to_original\": {\"max\": %.9g, \"mean\": %.9g, \"rms\": %.9g}, "
-                    "\"normal_deviation_mean_deg\": %.6g, \"normal_deviation_p95_deg\": %.6g}\n",
+                    "\"normal_deviation_mean_deg\": %.6g, \"normal_deviation_p95_deg\": %.6g, \"meshes\": [",
                     r.hausdorff, r.mean, r.rms, r.diagonal, r.hausdorff_rel(), r.mean_rel(), r.rms_rel(),
                     r.a_to_b.max, r.a_to_b.mean, r.a_to_b.rms, r.b_to_a.max, r.b_to_a.mean, r.b_to_a.rms,
                     r.normal_deviation_mean_deg, r.normal_deviation_p95_deg);
+        for (std::size_t i = 0; i < attrs.size(); ++i) {
+          const AttributeEvalResult& x = attrs[i];
+          std::printf("%s{\"attribute_rms\": {", i ? ", " : "");
+          for (std::size_t k = 0; k < x.attributes.size(); ++k) {
+            std::printf("%s\"%s\": %.9g", k ? ", " : "", x.attributes[k].name.c_str(), x.attributes[k].rms);
+          }
+          std::printf("}, \"interpolated_normal_deviation_mean_deg\": %.6g, \"interpolated_normal_deviation_p95_deg\": %.6g, "
+                      "\"uv_sets\": [",
+                      x.normal_deviation_mean_deg, x.normal_deviation_p95_deg);
+          for (std::size_t k = 0; k < x.uv_sets.size(); ++k) {
+            const UvSetReport& u = x.uv_sets[k];
+            std::printf("%s{\"set\": %d, \"stretch_ratio\": %.6g, \"stretch_max_linf\": %.6g, \"flipped\": %zu, "
+                        "\"spanning_charts\": %zu, \"outside_charts\": %zu, \"zero_area\": %zu}",
+                        k ? ", " : "", u.set, u.stretch_ratio, u.stretch_max_linf, u.flipped, u.spanning, u.outside,
+                        u.degenerate);
+          }
+          std::printf("], \"poses\": [");
+          for (std::size_t k = 0; k < x.poses.size(); ++k) {
+            std::printf("%s{\"pose\": \"%s\", \"hausdorff_rel\": %.9g, \"mean_rel\": %.9g}", k ? ", " : "",
+                        x.poses[k].name.c_str(), x.poses[k].hausdorff_rel, x.poses[k].mean_rel);
+          }
+          std::printf("]}");
+        }
+        std::printf("]}\n");
       } else {
         std::printf("bounding-box diagonal of the original: %.6g\n", r.diagonal);
         std::printf("                      absolute        %% of diagonal\n");
@@ -288,6 +333,26 @@ void register_eval(CLI::App& app) {
                     r.b_to_a.mean, r.b_to_a.rms, r.b_to_a.samples);
         std::printf("normal deviation: mean %.3f deg, p95 %.3f deg\n", r.normal_deviation_mean_deg,
                     r.normal_deviation_p95_deg);
+        for (std::size_t i = 0; i < attrs.size(); ++i) {
+          const AttributeEvalResult& x = attrs[i];
+          std::printf("mesh %zu:", i);
+          for (const AttributeError& a : x.attributes) std::printf(" %s RMS %.4g;", a.name.c_str(), a.rms);
+          if (!x.attributes.empty()) {
+            std::printf(" interpolated normals: mean %.3f deg, p95 %.3f deg", x.normal_deviation_mean_deg,
+                        x.normal_deviation_p95_deg);
+          }
+          std::printf("\n");
+          for (const UvSetReport& u : x.uv_sets) {
+            std::printf("  TEXCOORD_%d: stretch x%.3f (max Linf %.3g), %zu flipped, %zu spanning two charts, "
+                        "%zu corners outside every chart, %zu zero-area (original %zu)\n",
+                        u.set, u.stretch_ratio, u.stretch_max_linf, u.flipped, u.spanning, u.outside, u.degenerate,
+                        u.degenerate_original);
+          }
+          for (const PoseError& p : x.poses) {
+            std::printf("  pose %s: Hausdorff %.5f%%, mean %.5f%% of the diagonal\n", p.name.c_str(),
+                        100 * p.hausdorff_rel, 100 * p.mean_rel);
+          }
+        }
       }
     } catch (const io::IoError& e) {
       std::fprintf(stderr, "error: %s\n", e.what());

@@ -14,6 +14,8 @@ void register_convert(CLI::App& app);
 void register_simplify(CLI::App& app);
 void register_eval(CLI::App& app);
 void register_demo(CLI::App& app);
+// render.cpp: SVG wireframes.
+void register_render_wire(CLI::App& app);
 // run.cpp: the batch commands.
 void register_run(CLI::App& app);
 void register_validate_config(CLI::App& app);

@@ -1,5 +1,5 @@
-// The `lodforge` command. Subcommands: info, convert, simplify, eval, demo, run, validate-config,
-// merge-reports, bench.
+// The `lodforge` command. Subcommands: info, convert, simplify, eval, demo, render-wire, run,
+// validate-config, merge-reports, bench.
 //
 // Exit codes (documented in --help and README):
 //   0  success
@@ -30,6 +30,7 @@ int main(int argc, char** argv) {
   lodforge::cli::register_simplify(app);
   lodforge::cli::register_eval(app);
   lodforge::cli::register_demo(app);
+  lodforge::cli::register_render_wire(app);
   lodforge::cli::register_run(app);
   lodforge::cli::register_validate_config(app);
   lodforge::cli::register_merge_reports(app);

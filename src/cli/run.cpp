@@ -277,7 +277,8 @@ void register_run(CLI::App& app) {
                   "report.shard-K-of-N.json, see merge-reports");
   cmd->add_flag("--force", a->force, "ignore the cache: rebuild every asset");
   cmd->add_option("--memory-limit", a->memory_limit,
-                  "memory budget for assets in flight, e.g. 4G or 512M (default: half the RAM)");
+                  "memory the run stays under, e.g. 4G or 512M (default: half the RAM); assets start only while "
+                  "their estimated memory fits");
   cmd->callback([a] { run_command(*a); });
 }
 

@@ -2,11 +2,16 @@
 // Garland & Heckbert 1997; multiple_choice.cpp: Wu & Kobbelt 2002). Polygon input is fan-triangulated first.
 #include "lodforge/simplify/simplify.hpp"
 
+#include <array>
 #include <chrono>
 #include <cmath>
+#include <set>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
+#include "lodforge/quad/polychord_collapse.hpp"
+#include "lodforge/quad/quad_recovery.hpp"
 #include "lodforge/simplify/edge_collapse.hpp"
 
 namespace lodforge {
@@ -28,6 +33,19 @@ std::vector<std::string> SimplifyOptions::validate() const {
   if (!(max_flip_angle_deg > 0.0 && max_flip_angle_deg < 90.0)) {
     problems.push_back("max_flip_angle_deg must be in (0, 90), got " + std::to_string(max_flip_angle_deg));
   }
+  for (const auto& [name, w] : {std::pair{"normal", attribute_weights.normal}, std::pair{"uv", attribute_weights.uv},
+                                 std::pair{"color", attribute_weights.color}, std::pair{"skin", attribute_weights.skin}}) {
+    if (!(w >= 0.0 && std::isfinite(w))) {
+      problems.push_back(std::string("attribute_weights.") + name + " must be finite and >= 0, got " + std::to_string(w));
+    }
+  }
+  if (!(priority_lock > 0.0)) problems.push_back("priority_lock must be > 0, got " + std::to_string(priority_lock));
+  if (!(skin_weight_threshold >= 0.0 && skin_weight_threshold <= 1.0)) {
+    problems.push_back("skin_weight_threshold must be in [0, 1], got " + std::to_string(skin_weight_threshold));
+  }
+  if (!(skin_max_distance >= 0.0 && skin_max_distance <= 2.0)) {
+    problems.push_back("skin_max_distance must be in [0, 2], got " + std::to_string(skin_max_distance));
+  }
   if (multiple_choice_k < 1 || multiple_choice_k > 256) {
     problems.push_back("multiple_choice_k must be in [1, 256], got " + std::to_string(multiple_choice_k));
   }
@@ -43,6 +61,65 @@ const char* stop_reason_name(StopReason r) {
   return "unknown";
 }
 
+namespace {
+
+// Engine::polychord: quad-preserving sub-polychord collapse (quad part) on the polygon mesh as it is; when it
+// stops before the target, the triangle engine takes its output the rest of the way (that output is then
+// triangles only: a LOD chain is quads for its first LODs and triangles after).
+SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::size_t target = collapse::target_triangle_count(options, mesh.triangle_count());
+  double budget = options.max_error_abs;
+  if (options.max_error_rel >= 0.0) {
+    const double rel = options.max_error_rel * compute_bounds(mesh).diagonal();
+    budget = budget >= 0.0 ? std::min(budget, rel) : rel;
+  }
+  quad::PolychordResult q = quad::simplify_polychord(
+      mesh, {.target_triangles = std::max<std::size_t>(target, 1),
+             .max_error_abs = budget,
+             .border_weight = options.border_mode == BorderMode::free ? 0.0 : options.border_weight,
+             .max_flip_angle_deg = options.max_flip_angle_deg,
+             .lock_boundary = options.border_mode == BorderMode::lock,
+             .locked_vertices = options.locked_vertices});
+  const double quad_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  SimplifyResult r;
+  if (q.triangles_after > target) {
+    SimplifyOptions rest = options;
+    rest.engine = Engine::edge_collapse;
+    rest.target_triangles = std::max<std::size_t>(target, 1);
+    // The quad output is compacted, so vertex ids changed; a locked vertex never moved, so it is found again
+    // by its exact position.
+    std::set<std::array<float, 3>> locked_positions;
+    for (std::uint32_t v : options.locked_vertices) locked_positions.insert(mesh.positions[v].v);
+    rest.locked_vertices.clear();
+    for (std::uint32_t v = 0; v < q.mesh.vertex_count(); ++v) {
+      if (locked_positions.count(q.mesh.positions[v].v)) rest.locked_vertices.push_back(v);
+    }
+    r = collapse::run_edge_collapse(triangulated(q.mesh), rest);
+    // Quads the triangle engine left untouched come back as they were (their two triangles pair up again).
+    r.mesh = quad::recover_quads(r.mesh);
+    r.collapses += q.collapses;
+    r.rejected += q.rejected;
+    r.error_bound_abs = std::max(r.error_bound_abs, q.error_bound_abs);
+  } else {
+    r.mesh = std::move(q.mesh);
+    r.triangles_after = q.triangles_after;
+    r.error_bound_abs = q.error_bound_abs;
+    r.collapses = q.collapses;
+    r.rejected = q.rejected;
+    r.stop_reason = StopReason::target_reached;
+  }
+  const double diagonal = compute_bounds(mesh).diagonal();
+  r.error_bound_rel = diagonal > 0.0 ? r.error_bound_abs / diagonal : 0.0;
+  r.triangles_before = mesh.triangle_count();
+  r.quads_before = q.quads_before;
+  r.quads_after = count_face_kinds(r.mesh).quads;
+  r.timings.collapse_ms += quad_ms;
+  return r;
+}
+
+}  // namespace
+
 SimplifyResult simplify(const Mesh& mesh, const SimplifyOptions& options) {
   const std::vector<std::string> problems = options.validate();
   if (!problems.empty()) {
@@ -50,6 +127,7 @@ SimplifyResult simplify(const Mesh& mesh, const SimplifyOptions& options) {
     for (const std::string& p : problems) msg += "\n  " + p;
     throw std::invalid_argument(msg);
   }
+  if (options.engine == Engine::polychord) return run_polychord(mesh, options);
   const auto t0 = std::chrono::steady_clock::now();
   const FaceKindCounts kinds = count_face_kinds(mesh);
   const bool all_triangles = kinds.quads == 0 && kinds.polygons == 0;
@@ -62,6 +140,7 @@ SimplifyResult simplify(const Mesh& mesh, const SimplifyOptions& options) {
   SimplifyResult r = options.engine == Engine::multiple_choice ? collapse::run_multiple_choice(tris, options)
                                                                : collapse::run_edge_collapse(tris, options);
   r.triangles_before = mesh.triangle_count();
+  r.quads_before = kinds.quads;
   r.timings.setup_ms += triangulate_ms;
   return r;
 }

@@ -2,11 +2,13 @@
 // log lines, and what a killed or interrupted run leaves behind.
 #include <fcntl.h>
 #include <gtest/gtest.h>
+#include <pty.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <array>
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -158,6 +160,53 @@ TEST(BatchCli, RunWritesLodsAReportAndOneLogLinePerAsset) {
   EXPECT_EQ(again.code, 0);
   EXPECT_NE(again.output.find("(" + n + " cache hits)"), std::string::npos) << again.output;
   EXPECT_NE(again.output.find("(cached)"), std::string::npos) << again.output;
+}
+
+// Everything the CLI writes to a terminal (stdout and stderr on one pseudo-terminal), and its exit code.
+CliResult run_cli_on_terminal(const std::vector<std::string>& args) {
+  CliResult r;
+  int master = -1;
+  const pid_t pid = forkpty(&master, nullptr, nullptr, nullptr);
+  if (pid < 0) return r;
+  if (pid == 0) {
+    std::vector<char*> argv{const_cast<char*>(LODFORGE_CLI)};
+    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    execv(LODFORGE_CLI, argv.data());
+    _exit(127);
+  }
+  std::array<char, 4096> buf{};
+  for (;;) {
+    const ssize_t n = ::read(master, buf.data(), buf.size());
+    if (n > 0) {
+      r.output.append(buf.data(), static_cast<std::size_t>(n));
+    } else if (n < 0 && errno == EINTR) {
+      continue;
+    } else {
+      break;  // EIO: the child closed the terminal (exited)
+    }
+  }
+  ::close(master);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+TEST(BatchCli, ProgressIsOneLiveLineOnATerminal) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_tty");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 30);
+  const CliResult r = run_cli_on_terminal({"run", "--config", testlib::write_config(dir).string(), "--input",
+                                           lib.root.string(), "--output", (dir / "out").string(), "--jobs", "2"});
+  ASSERT_EQ(r.code, 0) << r.output;
+  const std::string n = std::to_string(lib.files.size());
+  // The line is redrawn in place (carriage return, erase to the end of the line), at least for the last asset,
+  // with the counts, the rate and the time left; it is erased before the summary.
+  EXPECT_NE(r.output.find("\r\x1b[K[" + n + "/" + n + "] 100%  "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(" tri/s  ETA 0:00"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("\r\x1b[Klodforge run: " + n + " assets: " + n + " ok"), std::string::npos) << r.output;
+  // No log lines ("[k/N] path: 3 LODs, 0.01 s"): those are for when stderr is not a terminal.
+  for (const char* log : {": 2 LODs, ", ": 3 LODs, "}) EXPECT_EQ(r.output.find(log), std::string::npos) << r.output;
 }
 
 TEST(BatchCli, FailedAssetsExitOneAndAreListed) {

@@ -41,25 +41,10 @@ class ConfigError : public std::runtime_error {
   std::vector<std::string> problems_;
 };
 
-// Multipliers of the attribute error terms against the geometric error; 0 ignores that attribute.
-struct AttributeWeights {
-  double normal = 1.0;
-  double uv = 1.0;
-  double color = 1.0;
-  double skin = 1.0;
-  friend bool operator==(const AttributeWeights&, const AttributeWeights&) = default;
-};
-
 // Options the config already parses and validates but the simplifier does not take yet (later issues add
-// them to SimplifyOptions; moving one there is a one-line change of its table entry in config.cpp).
+// them to SimplifyOptions; moving one there is a one-line change of its table entry in config.cpp). Empty now:
+// attribute_weights, permissive, priority_channel and skin_weight_threshold moved to SimplifyOptions (issue 4).
 struct PendingOptions {
-  AttributeWeights attribute_weights;
-  bool permissive = false;  // allow collapses across attribute seams (fewer triangles, visible seam shifts)
-  // Per-vertex weight scaling collapse costs: "none", a custom attribute ("_LOD_PRIORITY", "_PAINT.y") or a
-  // colour channel ("COLOR_0.r"). The default is used when the asset has it and ignored otherwise.
-  std::string priority_channel = "_LOD_PRIORITY";
-  // Influences below this weight are ignored when comparing the bones two vertices follow.
-  double skin_weight_threshold = 0.1;
   friend bool operator==(const PendingOptions&, const PendingOptions&) = default;
 };
 

@@ -12,9 +12,11 @@
 // Guarantees:
 //   - Output bytes (meshes, report.json without its "seconds" fields) are identical for any `jobs`: every stage
 //     is deterministic and nothing depends on which asset finishes first.
-//   - Memory: an asset is admitted only while the estimated footprints of the assets in flight (file size, plus
-//     declared buffer sizes for .gltf, x kFootprintPerFileByte) fit in `memory_limit_bytes`; one asset larger
-//     than the whole budget runs alone.
+//   - Memory: the process stays under `memory_limit_bytes`. An asset is admitted only while (a) the estimated
+//     footprints of the assets in flight (estimate_footprint) fit in the limit less what the process already held
+//     when the run started and less the duplicate-chain cache, and (b) the process's resident memory right now
+//     plus the new asset's footprint fits in the limit. Freed memory is handed back to the OS after each large
+//     asset, so (b) sees live memory. One asset larger than the whole budget still runs, alone.
 //   - Failure isolation: any exception inside a stage fails that asset only (recorded with its message).
 //   - Incremental: see cache.hpp. Outputs are staged and renamed into place, then the cache entry is written.
 //   - Duplicate meshes (same content and class) are simplified once per run; the copies reuse the result.
@@ -36,14 +38,21 @@ namespace lodforge::batch {
 
 // Part of every cache key: bump it whenever a change to lodforge makes the same input and config give
 // different output bytes (simplifier, post-process, writers), so stale LODs are rebuilt.
-inline constexpr const char* kAlgorithmVersion = "lodforge-0.1.0/batch-1";
+inline constexpr const char* kAlgorithmVersion = "lodforge-0.1.0/batch-2";  // 2: LOD "attributes"
 inline constexpr const char* kLodforgeVersion = "0.1.0";
 
-// Estimated peak memory of one asset in flight per byte of its file: the loaded Mesh (positions, wedges,
-// corners), the simplifier's working copy and queues, and the LOD chain come to roughly 10-30x a binary
-// file's size; text formats are larger on disk, so one factor errs on the safe side for both.
-inline constexpr std::uint64_t kFootprintPerFileByte = 24;
+// Estimated peak memory of one asset in flight. Measured with `lodforge run`: the whole chain (loaded Mesh,
+// simplifier quadrics, queues and working copies, the LODs and their post-processed copies, eval's BVH and
+// samples, output buffers) peaks at ~560 bytes per input triangle for one asset on one thread, ~700 with the
+// simplifier's own threads, and up to ~1100 each when two 22k-triangle assets run side by side (what the
+// allocator keeps per thread adds up), whatever the format. Memory follows triangles, not bytes, so the
+// bytes-to-memory factor is ~1150 bytes over the densest encoding of a triangle in each format: glTF/GLB
+// (positions + 32-bit indices: 12 bytes), PLY (binary: ~19), OBJ and OFF (text, positions only: ~32), STL
+// (binary: 50). Richer files (normals, UVs) are larger per triangle, so these factors err on the safe side.
 inline constexpr std::uint64_t kFootprintOverhead = 1u << 20;  // per asset: buffers, report record, staging
+// The footprint of the asset `file` (its bytes, plus the buffers a .gltf declares, x its format's factor, plus
+// kFootprintOverhead). Reads only a .gltf's JSON; 0 extra for an unreadable file (the load stage reports it).
+std::uint64_t estimate_footprint(const std::filesystem::path& file);
 
 // Half of the physical memory: leaves room for the OS file cache the writes go through.
 std::uint64_t default_memory_limit();

@@ -26,38 +26,58 @@
 #include <tbb/task_arena.h>
 
 #include "lodforge/core/mesh.hpp"
+#include "lodforge/metric/attribute_quadric.hpp"
 #include "lodforge/metric/quadric.hpp"
 #include "lodforge/simplify/simplify.hpp"
 
 namespace lodforge::collapse {
 
-// What a vertex may do, decided once from topology and options.
+// What a vertex may do, decided once from topology, wedges, materials and options (ALGORITHMS.md 2.3).
+// A corner's *key* is its wedge and its face's material (in permissive mode wedges of one vertex that differ
+// only in normals/tangents share a key): a vertex with two keys sits on a seam (UV seam, hard edge or
+// material boundary), with three or more where seams meet.
 enum class VertexKind : std::uint8_t {
-  interior,  // manifold, closed fan: may move and be removed
-  border,    // manifold, open fan (on one boundary loop): may move and be removed; constraint planes in preserve
+  interior,  // manifold, closed fan, one key: may move and be removed
+  border,    // manifold, open fan (on one boundary loop), one key: may move and be removed; constraint planes
+  seam,      // manifold fan (closed or open), two keys: collapses only along its seam (the wedge check), both
+             // sides together; held near the seam line by constraint planes on its seam edges
+  complex,   // three or more keys (seams meet: cube corners, chart corners): never moves, never removed (no
+             // wedge mapping can carry it), a neighbour may collapse onto it
   locked,    // never moves, never removed; a neighbour may collapse onto it: user locks, borders in lock mode,
-             // non-manifold stars (edges with > 2 faces, several fans), inconsistent orientation around it
+             // painted priority at or above priority_lock, non-manifold stars (edges with > 2 faces, several
+             // fans), inconsistent orientation around it
   frozen,    // takes part in no collapse at all: its position is NaN/Inf, so no cost or test involving it means
              // anything
 };
-inline constexpr int kVertexKinds = 4;
+inline constexpr int kVertexKinds = 6;
 
 // How edge (u, v) collapses, by the kinds of its endpoints.
 enum class EdgeRule : std::uint8_t {
   forbidden,  // never collapses
   optimal,    // full-edge collapse to the quadric's optimal placement
-  keep_u,     // half-edge collapse v → u (u is locked: it stays where it is)
+  keep_u,     // half-edge collapse v → u (u is pinned: it stays where it is)
   keep_v,     // half-edge collapse u → v
 };
 
-// kEdgeRule[kind(u)][kind(v)]. Rule of thumb: locked vertices attract, frozen ones repel, the rest is free;
-// topology (link condition, boundary pinch) is checked per collapse, not here.
+// kEdgeRule[kind(u)][kind(v)]. Rule of thumb: pinned vertices (complex, locked) attract, frozen ones repel, a
+// seam vertex attracts non-seam ones (it may not leave its seam for them) and moves freely with another seam
+// vertex (along their seam: the wedge check), the rest is free. Which wedges map where (and so whether
+// the edge really runs along the seam), topology (link condition, boundary pinch), UV flips and skinning are
+// checked per collapse, not here.
 inline constexpr EdgeRule kEdgeRule[kVertexKinds][kVertexKinds] = {
-    //  v: interior          border             locked             frozen
-    {EdgeRule::optimal, EdgeRule::optimal, EdgeRule::keep_v, EdgeRule::forbidden},      // u interior
-    {EdgeRule::optimal, EdgeRule::optimal, EdgeRule::keep_v, EdgeRule::forbidden},      // u border
-    {EdgeRule::keep_u, EdgeRule::keep_u, EdgeRule::forbidden, EdgeRule::forbidden},     // u locked
-    {EdgeRule::forbidden, EdgeRule::forbidden, EdgeRule::forbidden, EdgeRule::forbidden},  // u frozen
+    // v: interior          border             seam               complex            locked             frozen
+    {EdgeRule::optimal, EdgeRule::optimal, EdgeRule::optimal, EdgeRule::keep_v, EdgeRule::keep_v,
+     EdgeRule::forbidden},  // u interior
+    {EdgeRule::optimal, EdgeRule::optimal, EdgeRule::optimal, EdgeRule::keep_v, EdgeRule::keep_v,
+     EdgeRule::forbidden},  // u border
+    {EdgeRule::optimal, EdgeRule::optimal, EdgeRule::optimal, EdgeRule::keep_v, EdgeRule::keep_v,
+     EdgeRule::forbidden},  // u seam
+    {EdgeRule::keep_u, EdgeRule::keep_u, EdgeRule::keep_u, EdgeRule::forbidden, EdgeRule::forbidden,
+     EdgeRule::forbidden},  // u complex
+    {EdgeRule::keep_u, EdgeRule::keep_u, EdgeRule::keep_u, EdgeRule::forbidden, EdgeRule::forbidden,
+     EdgeRule::forbidden},  // u locked
+    {EdgeRule::forbidden, EdgeRule::forbidden, EdgeRule::forbidden, EdgeRule::forbidden, EdgeRule::forbidden,
+     EdgeRule::forbidden},  // u frozen
 };
 
 // Why a candidate was refused at check time (for statistics and tests).
@@ -70,7 +90,9 @@ enum class Veto : std::uint8_t {
   tetrahedron,      // both faces c-d-a and c-d-b exist: the collapse would fold a tetrahedron flat
   fold,             // a face normal would turn by more than max_flip_angle_deg
   degenerate,       // a face would get (almost) zero area
-  seam,             // wedges cannot be carried over without merging distinct attribute values
+  seam,             // wedges cannot be carried over without merging distinct attribute values (or materials)
+  uv_flip,          // a face's UV triangle would turn over (or collapse to zero area) in some UV set
+  skin,             // a face would join vertices with different dominant joints and distant weight vectors
 };
 
 // Runs loops of independent iterations inside a task arena of `threads` workers (0 = all cores); one thread
@@ -100,8 +122,9 @@ class Parallel {
 
 // An evaluated candidate collapse of edge (u, v), u < v.
 struct Evaluation {
-  double cost = 0;     // ordering key: the quadric error E(position), area-weighted (GH97)
-  double error = 0;    // quadric error / accumulated area: a mean squared distance, normalised units
+  double cost = 0;     // ordering key: the quadric error E(position), area-weighted (GH97), plus the reduced
+                       // attribute quadrics of the merged wedges (Hoppe 1999) and the skinning term
+  double error = 0;    // surface quadric error / accumulated area: a mean squared distance, normalised units
   Vec3d position{};    // where the survivor goes, normalised coordinates
 };
 
@@ -122,6 +145,8 @@ struct Scratch {
   std::vector<std::uint32_t> ring;      // ring() output; apply(): the survivor's merged face list
   std::vector<std::uint64_t> spokes;    // setup: neighbour << 32 | face code
   std::vector<std::uint32_t> parent;    // setup: fan union-find
+  std::vector<std::uint32_t> wedge_map;  // attribute mode: victim wedge, target wedge pairs (check, apply)
+  std::vector<double> attr;              // attribute mode: one merged wedge's optimal attributes
 };
 
 class CollapseMesh {
@@ -189,11 +214,41 @@ class CollapseMesh {
   Mesh output() const;
 
  private:
-  static constexpr std::uint8_t kDead = 1, kMoved = 2, kSeam = 4;
+  // kFan: a single, consistently oriented manifold fan (interior, border and seam vertices), whose boundary
+  // status kOpen is kept exact by apply(); check() and ring() take their fast paths on it.
+  static constexpr std::uint8_t kDead = 1, kMoved = 2, kSeam = 4, kFan = 8, kOpen = 16;
+  // Attribute dimensions beyond this are left out of the metric (a mesh would need 5 colour sets).
+  static constexpr int kMaxAttributeDims = 24;
 
+  // One attribute stream taking part in the metric: dims [dim, dim + dims) of the scaled attribute vector,
+  // scaled = raw × scale.
+  struct AttributeGroup {
+    enum class Type : std::uint8_t { normal, uv, color } type;
+    int set = 0;
+    int dim = 0, dims = 0;
+    double scale = 0;
+  };
+
+  std::uint32_t key(std::size_t corner) const { return tri_key_.empty() ? tri_wedge_[corner] : tri_key_[corner]; }
   bool flip_ok(const Vec3d& old_p, const Vec3d& x, const Vec3d& p, const Vec3d& q) const;
   bool wedges_carry_over(std::uint32_t a, std::uint32_t b, const Check& c) const;
+  // Victim wedge → target wedge of every distinct wedge around a (pairs in s.wedge_map, in a's face order).
+  void map_wedges(std::uint32_t a, std::uint32_t b, const Check& c, Scratch& s) const;
+  bool uv_ok(std::uint32_t a, std::uint32_t b, const Check& c, const Vec3d& x, Scratch& s) const;
+  bool skin_ok(std::uint32_t a, std::uint32_t b) const;
+  // Where x lies on a → b: 0 at a, 1 at b (clamped).
+  double edge_t(std::uint32_t a, std::uint32_t b, const Vec3d& x) const;
+  bool blends(std::uint32_t b, const Vec3d& x) const { return blend_ && !(vx_[b].pos == x); }
+  // The new UV of target wedge wt (merging wx) in set `set` when the survivor moves to x.
+  Vec2f new_uv(int set, std::uint32_t wx, std::uint32_t wt, const Vec3d& x, double t) const;
+  SkinInfluences blended_skin(std::uint32_t a, std::uint32_t b, double t) const;
+  void carry_attributes(const Check& c, const Vec3d& x, Scratch& s);
+  void add_attribute_quadrics(std::uint32_t u, std::uint32_t v, Quadric& q) const;
+  double skin_cost(std::uint32_t u, std::uint32_t v) const;
+  void setup_keys();
+  void setup_priority(std::vector<float>& priority) const;
   void setup(Parallel& parallel);
+  void setup_attributes(Parallel& parallel);
 
   const Mesh& src_;
   SimplifyOptions options_;
@@ -225,7 +280,28 @@ class CollapseMesh {
   std::vector<std::uint32_t> begin_, size_, capacity_;  // per-vertex face lists in pool_
   std::vector<std::uint32_t> pool_;
   std::size_t alive_faces_ = 0;
+
+  // --- seams, attributes, skin (ALGORITHMS.md 2, 6) ---
+  std::vector<std::uint32_t> tri_key_;  // key of each corner when it is not simply the wedge (see VertexKind)
+  std::vector<AttributeGroup> groups_;
+  int dims_ = 0;                           // scaled attribute dimensions in the metric (0: geometry only)
+  std::vector<AttributeQuadric> wq_;       // per wedge
+  std::vector<AttributeGradient> wg_;      // dims_ per wedge
+  bool blend_ = false;                     // attribute_placement optimal: moved wedges get new values
+  bool carry_ = false;                     // apply() has attribute work to do
+  double skin_cost_scale_ = 0.0;           // λ_skin × L² (0: no skin term)
+  int skin_cap_ = 0;                       // most influences any input vertex uses
+  // Working copies of what collapses change (empty when the input lacks them).
+  std::vector<Vec3f> normals_;
+  std::vector<std::vector<Vec2f>> uvs_;
+  std::vector<std::vector<Vec4f>> colors_;
+  std::vector<MorphTarget> morphs_;
+  std::vector<SkinInfluences> skin_;
+  std::vector<float> priority_;            // painted weight per vertex, empty when none
 };
+
+// Recomputes the tangents of `mesh` (triangles) from its normals and UV set 0; no-op without them.
+void recompute_tangents(Mesh& mesh);
 
 // Engines. `triangles` holds triangles only; the result's triangles_before is filled in by simplify().
 SimplifyResult run_edge_collapse(const Mesh& triangles, const SimplifyOptions& options);

@@ -4,13 +4,17 @@
 //
 // Works on triangles: polygon input is fan-triangulated first. The input is never modified.
 //
-// What the output keeps (this issue is geometry; attribute-aware collapse comes later):
+// What the output keeps (geometry, and the attributes of issue 4):
 //  - vertices: survivors keep their input id order; a vertex that never moved (locked, or only ever the
 //    target of half-edge collapses) keeps its exact input position, bit for bit;
-//  - wedges: a survivor keeps its own wedges with their attributes unchanged. A collapse is only made when
-//    the victim's wedges map one-to-one onto the survivor's across the collapsed edge: seam vertices move
-//    along their seam, never across it. Meshes whose every vertex is a seam (flat-shaded normals, per-face
-//    UV islands) therefore barely simplify yet; stop_reason says no_valid_collapse;
+//  - wedges: a collapse is only made when the victim's wedges map one-to-one onto the survivor's across the
+//    collapsed edge (material boundaries count as seams): seam vertices move along their seam, never across
+//    it, UV charts never merge and no UV triangle flips. A survivor's wedges get attributes per
+//    attribute_placement (optimal: the Hoppe 1999 minimiser, clamped; keep: unchanged); tangents are
+//    recomputed from normals and UV set 0 when the input had them (optimal placement). Meshes whose every
+//    vertex is a seam (flat-shaded normals, per-face UV islands) barely simplify unless `permissive`;
+//  - skin: weights of a moved vertex blend its two sources (top influences, renormalised); morph deltas
+//    blend the same way;
 //  - faces: input order, each with its material and group;
 //  - topology: no new non-manifold, duplicate, degenerate or inconsistently oriented elements (validate());
 //    vertices on non-manifold edges, several fans or inconsistently oriented edges are locked; closed
@@ -28,6 +32,29 @@ namespace lodforge {
 enum class Engine {
   edge_collapse,    // greedy QEM edge collapse, versioned queue, parallel batched re-evaluation (default)
   multiple_choice,  // Wu-Kobbelt: best of k sampled candidates per step (fast preset)
+  polychord,        // quad-preserving sub-polychord collapse (quad/polychord_collapse.hpp); keeps quads, then
+                    // continues with edge_collapse (triangulating) if it stops before the target
+};
+
+// Multipliers of the attribute error terms against the geometric error (ALGORITHMS.md 2.2, 2.4); 0 leaves that
+// attribute out of the metric; all 0 gives exactly the geometry-only result. Units: a normal or colour change
+// of 1 across a face costs like moving that face by one mean input edge length (times the weight); UVs are
+// first scaled by the mesh's UV density (sqrt of 3-D area over UV area, per UV set), so a UV shift costs like
+// moving the surface by the distance the texture slides (times the weight): independent of texture resolution.
+// Skin: a weight-vector change of 1 (L2) between two merged vertices costs like a normal change of 1.
+struct AttributeWeights {
+  double normal = 1.0;
+  double uv = 1.0;
+  double color = 1.0;
+  double skin = 1.0;
+  friend bool operator==(const AttributeWeights&, const AttributeWeights&) = default;
+};
+
+// Where the attributes of a moved vertex come from.
+enum class AttributePlacement {
+  optimal,  // the attribute quadric's minimiser at the new position, clamped (unit normals, colours in [0, 1],
+            // UVs on the collapsed edge's UV segment, inside the chart); tangents recomputed
+  keep,     // the surviving wedges' values unchanged (all LODs can share one vertex buffer)
 };
 
 enum class BorderMode {
@@ -60,6 +87,25 @@ struct SimplifyOptions {
   // value but never on `threads`.
   std::size_t max_batch = 0;
 
+  // --- attributes, seams, skinning, painted priority (edge_collapse.hpp has the vertex kinds and rules) ---
+  AttributeWeights attribute_weights{};
+  AttributePlacement attribute_placement = AttributePlacement::optimal;
+  // Very low LODs: wedges of one vertex that differ only in normals and tangents (hard edges) may merge; UV
+  // seams and material boundaries still hold.
+  bool permissive = false;
+  // Per-vertex painted weight scaling that vertex's quadrics: "_LOD_PRIORITY" (Mesh::priority), another custom
+  // attribute ("_PAINT", "_PAINT.y"), a colour channel ("COLOR_0.r"), or "none". Used when the mesh has it.
+  // 1 is neutral, 0 "don't care", priority_lock and above lock the vertex. The quadrics are scaled by the
+  // weight squared, so a weight acts on distances: a region painted 10 keeps about a tenth of the error.
+  // The error bound (error_bound_abs) is that of the unpainted surface.
+  std::string priority_channel = "_LOD_PRIORITY";
+  double priority_lock = 1000.0;
+  // Skinning: influences below this weight are ignored when finding a vertex's dominant joint and comparing
+  // weight vectors. Two vertices whose dominant joints differ never merge unless the L1 distance of their
+  // weight vectors is below skin_max_distance (the blend band of a joint).
+  double skin_weight_threshold = 0.1;
+  double skin_max_distance = 0.5;
+
   // Every problem at once, one line each; empty = valid.
   std::vector<std::string> validate() const;
 };
@@ -83,6 +129,9 @@ struct SimplifyResult {
   std::size_t collapses = 0;
   std::size_t rounds = 0;           // parallel rounds (edge_collapse batches, multiple_choice sample rounds)
   std::size_t rejected = 0;         // candidates refused at check time (link, pinch, fold, seam, ...)
+  // Faces that are quads before (input) and after; only the polychord engine outputs quads.
+  std::size_t quads_before = 0;
+  std::size_t quads_after = 0;
 };
 
 // Throws std::invalid_argument listing every problem when options.validate() is not empty, and when a

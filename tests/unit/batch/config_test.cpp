@@ -138,8 +138,8 @@ TEST(BatchConfig, OptionsResolveDefaultsThenClassThenLod) {
   EXPECT_EQ(lod1.options.simplify.border_mode, BorderMode::lock);    // class
   EXPECT_EQ(lod1.options.simplify.seed, 6u);                         // class over defaults
   EXPECT_EQ(lod1.options.simplify.max_flip_angle_deg, 50.0);
-  EXPECT_EQ(lod1.options.pending.attribute_weights, (AttributeWeights{.normal = 3, .uv = 4, .color = 1, .skin = 1}));
-  EXPECT_EQ(lod1.options.pending.priority_channel, "COLOR_0.r");
+  EXPECT_EQ(lod1.options.simplify.attribute_weights, (AttributeWeights{.normal = 3, .uv = 4, .color = 1, .skin = 1}));
+  EXPECT_EQ(lod1.options.simplify.priority_channel, "COLOR_0.r");
 
   const LodSpec& lod2 = c.classes[0].lods[1];
   EXPECT_EQ(lod2.from, LodFrom::source);
@@ -152,9 +152,9 @@ TEST(BatchConfig, OptionsResolveDefaultsThenClassThenLod) {
   EXPECT_EQ(lod2.options.simplify.max_batch, 1u);
   EXPECT_EQ(lod1.options.simplify.max_batch, 0u);
   // Attribute weights merge key by key through the three levels.
-  EXPECT_EQ(lod2.options.pending.attribute_weights, (AttributeWeights{.normal = 3, .uv = 4, .color = 1, .skin = 2}));
-  EXPECT_TRUE(lod2.options.pending.permissive);
-  EXPECT_EQ(lod2.options.pending.skin_weight_threshold, 0.3);
+  EXPECT_EQ(lod2.options.simplify.attribute_weights, (AttributeWeights{.normal = 3, .uv = 4, .color = 1, .skin = 2}));
+  EXPECT_TRUE(lod2.options.simplify.permissive);
+  EXPECT_EQ(lod2.options.simplify.skin_weight_threshold, 0.3);
   // The class's own options stay as the class set them.
   EXPECT_EQ(c.classes[0].options.simplify.seed, 6u);
 }
@@ -461,7 +461,7 @@ TEST(BatchConfig, SchemaDocumentsEveryKey) {
   }
   EXPECT_EQ(defs["class"]["properties"]["lods"]["maxItems"], kMaxLods);
   EXPECT_EQ(defs["simplifierOptions"]["properties"]["engine"]["enum"],
-            Json::parse(R"(["edge_collapse", "multiple_choice"])"));
+            Json::parse(R"(["edge_collapse", "multiple_choice", "polychord"])"));
 }
 
 // --- every error path, with its message ------------------------------------------------------------------
@@ -543,11 +543,11 @@ TEST(BatchConfigErrors, OutputOptions) {
 }
 
 TEST(BatchConfigErrors, EngineAndBorder) {
-  EXPECT_EQ(error_with("/defaults/engine", "polychord"),
-            expected("defaults.engine: must be one of \"edge_collapse\", \"multiple_choice\", got string "
-                     "\"polychord\""));
+  EXPECT_EQ(error_with("/defaults/engine", "quadric"),
+            expected("defaults.engine: must be one of \"edge_collapse\", \"multiple_choice\", \"polychord\", got "
+                     "string \"quadric\""));
   EXPECT_EQ(error_with("/defaults/engine", 1),
-            expected("defaults.engine: must be one of \"edge_collapse\", \"multiple_choice\", got 1"));
+            expected("defaults.engine: must be one of \"edge_collapse\", \"multiple_choice\", \"polychord\", got 1"));
   EXPECT_EQ(error_with("/classes/0/lods/0/border", "locked"),
             expected("classes[0].lods[0].border: must be one of \"free\", \"preserve\", \"lock\", got string "
                      "\"locked\""));
@@ -613,8 +613,8 @@ TEST(BatchConfigErrors, ClassStructure) {
   EXPECT_EQ(error_with("/classes/0/description", 1), expected("classes[0].description: must be a string, got 1"));
   EXPECT_EQ(error_with("/classes/0/options", 3), expected("classes[0].options: must be an object, got 3"));
   EXPECT_EQ(error_with("/classes/0/options/engine", "x"),
-            expected("classes[0].options.engine: must be one of \"edge_collapse\", \"multiple_choice\", got string "
-                     "\"x\""));
+            expected("classes[0].options.engine: must be one of \"edge_collapse\", \"multiple_choice\", \"polychord\", "
+                     "got string \"x\""));
 }
 
 TEST(BatchConfigErrors, DuplicateClassNames) {
@@ -776,7 +776,7 @@ TEST(BatchConfigErrors, ReportsEveryProblemAtOnceOnePerLine) {
     EXPECT_EQ(e.source(), "x.json");
     const std::vector<std::string> want = {
         "version: unsupported version 3; this lodforge reads version 1",
-        "defaults.engine: must be one of \"edge_collapse\", \"multiple_choice\", got string \"fast\"",
+        "defaults.engine: must be one of \"edge_collapse\", \"multiple_choice\", \"polychord\", got string \"fast\"",
         "classes[0].lods[0].colour: unknown key; allowed: " + lod_keys(),
         "classes[0].lods[1].ratio: must be < previous ratio 0.5",
         "classes[1].match: must not be empty",

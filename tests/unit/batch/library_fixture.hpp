@@ -182,8 +182,10 @@ struct Validation {
   std::string output;
 };
 
-inline Validation validate_gltf(const std::vector<fs::path>& files) {
+// `baseline`: errors the source file already has are not counted (validate_gltf.mjs --baseline).
+inline Validation validate_gltf(const std::vector<fs::path>& files, const fs::path& baseline = {}) {
   std::string cmd = "node '" + (fs::path(LODFORGE_SOURCE_DIR) / "tests/support/validate_gltf.mjs").string() + "'";
+  if (!baseline.empty()) cmd += " --baseline '" + baseline.string() + "'";
   for (const fs::path& f : files) cmd += " '" + f.string() + "'";
   cmd += " 2>&1";
   Validation v;

@@ -32,6 +32,7 @@ json lod(int level, double ratio, double mean_rel, double hausdorff_rel) {
           {"rms_rel", mean_rel * 1.3},
           {"hausdorff_rel", hausdorff_rel},
           {"normal_deviation_mean_deg", 3.25 * level},
+          {"attributes", {{"normal_deviation_mean_deg", 3.25 * level}}},
           {"stop_reason", "target_reached"},
           {"seconds", 0.012 * level},
           {"screen_coverage", nullptr}};

@@ -24,6 +24,7 @@ Json lod(int level) {
           {"rms_rel", 0.0002},
           {"hausdorff_rel", 0.002},
           {"normal_deviation_mean_deg", 1.5},
+          {"attributes", {{"normal_deviation_mean_deg", 1.5}, {"normal_deviation_p95_deg", 4.0}}},
           {"stop_reason", "target_reached"},
           {"seconds", 0.01},
           {"screen_coverage", 0.4}};
@@ -71,11 +72,14 @@ TEST(Report, CheckNamesEveryShapeProblem) {
   Json r = report({asset("b"), asset("a")});
   r["assets"][1]["lods"][0]["ratio"] = "half";
   r["assets"][0]["status"] = "done";
+  r["assets"][0]["lods"][0]["attributes"]["normal_deviation_p95_deg"] = nullptr;
   r["summary"].erase("lods");
   r.erase("jobs");
   const std::vector<std::string> problems = check_report(r);
-  const std::vector<std::string> expected = {"jobs: missing", "summary.lods: missing",
+  const std::vector<std::string> expected = {"jobs: missing",
+                                             "summary.lods: missing",
                                              "assets[0].status: expected ok, failed or skipped",
+                                             "assets[0].lods[0].attributes.normal_deviation_p95_deg: expected a number",
                                              "assets[1].path: assets are not sorted by path (or a path repeats)",
                                              "assets[1].lods[0].ratio: expected a number"};
   EXPECT_EQ(problems, expected);

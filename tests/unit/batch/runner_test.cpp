@@ -90,6 +90,16 @@ TEST(BatchRunner, WritesEveryLodWithinItsBudget) {
       }
       EXPECT_GE(l["hausdorff_rel"].get<double>(), 0.0);
       EXPECT_GT(l["screen_coverage"].get<double>(), 0.0);
+      EXPECT_EQ(l["attributes"]["normal_deviation_mean_deg"], l["normal_deviation_mean_deg"]);
+      EXPECT_GE(l["attributes"]["normal_deviation_p95_deg"].get<double>(), 0.0);
+    }
+    // MSFT_screencoverage from the measured error: where the LOD's Hausdorff error is one pixel of a
+    // 1080-pixel-tall screen (the object being its bounding sphere), never above the LOD before it.
+    double above = 1.0;
+    for (const Json& l : a["lods"]) {
+      const double expected = std::min(above, 1.0 / (1080.0 * std::max(l["hausdorff_rel"].get<double>(), 1e-12)));
+      EXPECT_DOUBLE_EQ(l["screen_coverage"].get<double>(), expected) << "LOD" << l["level"];
+      above = expected;
     }
     // Outputs: a MSFT_lod glTF for glTF sources, one file per LOD otherwise; all exist.
     ASSERT_FALSE(a["outputs"].empty());
@@ -402,6 +412,26 @@ TEST(BatchRunner, ParsesByteSizes) {
   for (const char* bad : {"", "G", "-1G", "4X", "abc", "0"})
     EXPECT_THROW(parse_byte_size(bad), std::invalid_argument) << bad;
   EXPECT_GT(default_memory_limit(), 0u);
+}
+
+TEST(BatchRunner, FootprintEstimateCoversTheMeasuredPeakInEveryFormat) {
+  // The whole chain of an asset peaks at ~560-1100 bytes per input triangle (runner.hpp); the estimate, made from
+  // the file size before loading, must not be below that in any format, nor absurdly above it.
+  const fs::path dir = testing::temp_dir("batch_runner_footprint");
+  const Mesh sphere = testing::make_uv_sphere(100, 100);
+  const double triangles = static_cast<double>(sphere.triangle_count());
+  for (const auto& [format, name] : std::vector<std::pair<io::Format, std::string>>{{io::Format::glb, "s.glb"},
+                                                                                    {io::Format::gltf, "s.gltf"},
+                                                                                    {io::Format::obj, "s.obj"},
+                                                                                    {io::Format::ply, "s.ply"},
+                                                                                    {io::Format::off, "s.off"},
+                                                                                    {io::Format::stl, "s.stl"}}) {
+    io::save_asset(testlib::asset_of({sphere}, format), dir / name);
+    const double per_triangle = double(estimate_footprint(dir / name) - kFootprintOverhead) / triangles;
+    EXPECT_GE(per_triangle, 1100.0) << name;
+    EXPECT_LE(per_triangle, 5000.0) << name;
+  }
+  EXPECT_EQ(estimate_footprint(dir / "missing.obj"), kFootprintOverhead);
 }
 
 TEST(BatchRunner, TightMemoryLimitStillFinishes) {

@@ -1,0 +1,76 @@
+// Quad-preserving simplification by polychord and sub-polychord collapse (ALGORITHMS.md 4.4-4.5).
+//
+//   PolychordResult r = quad::simplify_polychord(mesh, {.target_triangles = 1000});
+//
+// Each step collapses a contiguous run of rungs of one polychord (or the whole chord): every rung's two ends
+// become one vertex at the minimiser of their summed quadric, the quads between collapsed rungs vanish, and
+// each open end turns one quad into a triangle (or deletes a triangle the chord ends in). Runs are found per
+// chord by seed-and-grow and ranked by cost per removed triangle (a run ranks no better than its worst rung)
+// in a versioned priority queue; after each collapse the chords through faces around the touched vertices go
+// stale and are re-traced when they reach the top. Open run ends leave triangles: they cost a penalty and are
+// budgeted, so the result stays quad-dominant. Every collapse goes through QuadMesh::weld, which validates
+// and rolls back.
+//
+// What the output keeps: quads stay quads unless a run ends in them; faces keep their input order, material
+// and group; a vertex that never moved keeps its exact input position. Wedges: an island keeps the wedges of
+// its survivor (the vertex with the most wedges), one per side of a seam; islands that would merge two wedges
+// of one vertex are refused (QuadMesh::weld). Skin, priority and morph deltas are the survivor's.
+// Not done here: the "guide plane" re-simplification pass after polychord removal (EA's US patent
+// 10,043,310); lodforge::simplify() continues with the triangle engine when this one stops early.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "lodforge/core/mesh.hpp"
+#include "lodforge/quad/polychord.hpp"
+
+namespace lodforge::quad {
+
+struct PolychordOptions {
+  // Target triangle count (fan triangles): target_triangles when non-zero, else round(target_ratio × input).
+  double target_ratio = 0.5;
+  std::size_t target_triangles = 0;
+  // No island whose RMS quadric distance (sqrt(E / area)) exceeds this is made; negative = unlimited.
+  double max_error_abs = -1.0;  // model units
+  double border_weight = 10.0;  // boundary constraint planes relative to face quadrics
+  double max_flip_angle_deg = 60.0;
+  bool lock_boundary = false;   // boundary vertices never move and are never removed
+  // Cost added per triangle a run leaves behind (an open end in a quad), as a fraction of mean face area ×
+  // mean edge length²; a run ending in an existing triangle gets it back. Biases the search towards whole
+  // chords and towards runs that close earlier triangles, which keeps the result quad-dominant.
+  double triangle_penalty = 0.5;
+  // A run ranks no better than its worst rung's cost per removed triangle times this: keeps long, cheap runs
+  // from dragging an expensive rung (a feature) along. 0 = rank by the mean cost per removed triangle only.
+  double worst_rung_weight = 100.0;
+  // Most triangles runs may leave behind, as a fraction of the faces expected at the target (target / 2);
+  // once spent, only whole chords and runs that end in existing triangles are made, until none is left: then
+  // the budget is lifted. 1 = no limit.
+  double max_triangle_fraction = 0.1;
+  int seed_rungs = 3;  // length of the seed run of the seed-and-grow search
+  // Pair triangles into quads first (quad_recovery.hpp) when the input has no quads at all.
+  bool recover_quads = true;
+  std::vector<std::uint32_t> locked_vertices{};
+};
+
+struct PolychordResult {
+  Mesh mesh;
+  std::size_t triangles_before = 0, triangles_after = 0;
+  std::size_t quads_before = 0, quads_after = 0;
+  bool target_reached = false;
+  double error_bound_abs = 0;  // running maximum over collapsed islands of sqrt(E / area)
+  std::size_t collapses = 0;   // committed runs
+  std::size_t rejected = 0;    // runs the weld refused
+  std::size_t recovered_quads = 0;  // quads made by quad recovery of triangle input
+  std::size_t paired_triangles = 0; // quads made at the end from adjacent triangles the runs left (see .cpp)
+};
+
+// Whether rungs [first, last] of `chord` may collapse as one run: none of them shares a vertex with another
+// (a run through a self-intersection or along a self-touching stretch would merge rails that are already
+// adjacent). The whole chord of a self-touching polychord is never allowed.
+bool run_allowed(const Polychord& chord, std::size_t first, std::size_t last);
+
+// Throws std::invalid_argument for out-of-range locked vertices or options (ratio outside (0, 1]).
+PolychordResult simplify_polychord(const Mesh& mesh, const PolychordOptions& options);
+
+}  // namespace lodforge::quad

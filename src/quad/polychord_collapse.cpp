@@ -1,0 +1,573 @@
+// Sub-polychord collapse (ALGORITHMS.md 4.4-4.5): the quad-dominant LOD method A. Mason described in "Quad
+// Mesh Simplification in Frostbite" (GDC 2020), built on the polychord collapse of Daniels, Silva, Shepherd &
+// Cohen, "Quadrilateral mesh simplification" (SIGGRAPH Asia 2008), with Garland-Heckbert quadrics (1997) for
+// cost and placement. The guide-plane re-simplification pass of EA's US patent 10,043,310 is not part of it.
+//
+// Driver: setup (quadrics, chords) -> queue of per-chord best runs -> pop, weld, re-trace around the touched
+// vertices -> output.
+#include "lodforge/quad/polychord_collapse.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <queue>
+#include <stdexcept>
+#include <string>
+
+#include "lodforge/metric/quadric.hpp"
+#include "lodforge/quad/polychord.hpp"
+#include "lodforge/quad/quad_mesh.hpp"
+#include "lodforge/quad/quad_recovery.hpp"
+
+namespace lodforge::quad {
+namespace {
+
+// conflict[k]: the last rung before k that shares a vertex with rung k, or -1. A run [i, j] is allowed when
+// every conflict[k] for k in [i, j] is below i.
+std::vector<long long> rung_conflicts(const Polychord& p) {
+  std::vector<long long> conflict(p.rungs.size(), -1);
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> at;  // (vertex, rung)
+  for (std::uint32_t k = 0; k < p.rungs.size(); ++k) {
+    at.emplace_back(p.rungs[k][0], k);
+    at.emplace_back(p.rungs[k][1], k);
+  }
+  std::sort(at.begin(), at.end());
+  for (std::size_t i = 1; i < at.size(); ++i) {
+    if (at[i].first == at[i - 1].first) {
+      conflict[at[i].second] = std::max<long long>(conflict[at[i].second], at[i - 1].second);
+    }
+  }
+  return conflict;
+}
+
+// A contiguous run of rungs [first, last] of one chord (all rungs when whole).
+struct Candidate {
+  std::uint32_t first = 0, last = 0;
+  double cost = 0;        // summed island cost plus the triangle penalty (never negative)
+  long long removed = 0;  // triangles the collapse removes
+  long long left = 0;     // triangles it leaves behind (open ends in quads) minus those it deletes
+  double key = 0;         // cost per removed triangle, no better than the worst rung's: lower is better
+};
+
+// The queue orders by key, then prefers more removed triangles, then the lower chord id (determinism).
+struct Entry {
+  double key;
+  long long removed;
+  std::uint32_t chord, version;
+  bool operator>(const Entry& o) const {
+    if (key != o.key) return key > o.key;
+    if (removed != o.removed) return removed < o.removed;
+    return chord > o.chord;
+  }
+};
+
+// A traced chord and its queue state. After a collapse nearby, a chord goes stale: its trace may be wrong,
+// but it keeps its queue entry (with the old key) and is re-traced only when that entry pops (lazy
+// invalidation, ALGORITHMS.md 4.4), since most stale chords never reach the top before they change again.
+struct Chord {
+  enum class State : std::uint8_t { alive, stale, dead };
+  Polychord trace;
+  State state = State::alive;
+  std::uint32_t version = 0;
+  bool queued = false;  // an entry with this version is in the queue
+  Candidate best;       // what that entry stands for (alive chords)
+  // Retry limits after the weld refused a run: the whole chord, then runs of at most max_run rungs.
+  bool whole_allowed = true;
+  std::size_t max_run = std::numeric_limits<std::size_t>::max();
+};
+
+struct IslandPlan {
+  std::vector<std::vector<std::uint32_t>> islands;
+  std::vector<Vec3d> positions;
+  std::vector<Quadric> quadrics;
+  double max_error = 0;  // sqrt(E / area), model units
+};
+
+class Engine {
+ public:
+  Engine(const Mesh& mesh, const PolychordOptions& options, std::size_t target)
+      : mesh_(mesh), options_(options), target_(target), qm_(mesh) {
+    for (std::uint32_t v : options.locked_vertices) qm_.lock(v);
+    if (options.lock_boundary) {
+      for (std::uint32_t f = 0; f < qm_.face_slots(); ++f) {
+        for (std::uint32_t i = 0; i < qm_.face_size(f); ++i) {
+          if (qm_.across(f, i).kind != QuadMesh::Across::face) {
+            qm_.lock(qm_.face_vertex(f, i));
+            qm_.lock(qm_.face_vertex(f, (i + 1) % qm_.face_size(f)));
+          }
+        }
+      }
+    }
+    weld_options_.max_flip_angle_deg = options.max_flip_angle_deg;
+    // A small overshoot lets the last collapses be whole runs rather than single rungs that leave triangles.
+    slack_ = std::max<long long>(2, static_cast<long long>(target_ / 100));
+    // At the target a quad-dominant mesh has about target / 2 faces.
+    triangle_budget_ = options.max_triangle_fraction >= 1.0
+                           ? kUnlimited
+                           : std::llround(options.max_triangle_fraction * static_cast<double>(target_) / 2.0);
+    setup_quadrics();
+  }
+
+  PolychordResult run();
+
+ private:
+  void setup_quadrics();
+  double rung_cost(const std::array<std::uint32_t, 2>& r) const;
+  std::optional<Candidate> best_candidate(const Chord& chord, long long cap) const;
+  // How many more triangles runs may leave behind (the triangle budget minus the triangles there are).
+  long long triangles_left_allowed() const {
+    return triangle_budget_ - static_cast<long long>(qm_.triangle_faces());
+  }
+  IslandPlan plan(const Chord& chord, const Candidate& c) const;
+  void trace_from(std::uint32_t face, int direction);
+  void push(std::uint32_t id);
+  void mark_stale(std::uint32_t id);
+  void retrace(std::uint32_t id);
+  void invalidate_around(const WeldResult& w);
+
+  const Mesh& mesh_;
+  const PolychordOptions& options_;
+  std::size_t target_;
+  QuadMesh qm_;
+  WeldOptions weld_options_;
+  long long slack_ = 2;
+  double penalty_ = 0;  // cost of one triangle left behind
+  static constexpr long long kUnlimited = std::numeric_limits<long long>::max() / 4;
+  long long triangle_budget_ = 0;
+  std::vector<Quadric> quadric_;
+  std::vector<Chord> chords_;
+  std::vector<std::array<std::uint32_t, 2>> face_chord_;
+  std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> queue_;
+  double error_bound_ = 0;
+  std::size_t collapses_ = 0, rejected_ = 0;
+};
+
+void Engine::setup_quadrics() {
+  const std::size_t nv = qm_.vertex_count();
+  quadric_.assign(nv, Quadric{});
+  double area = 0, edge_sq = 0;
+  std::size_t faces = 0, edges = 0;
+  for (std::uint32_t f = 0; f < qm_.face_slots(); ++f) {
+    const std::uint32_t n = qm_.face_size(f);
+    if (n == 0) continue;
+    // The face's plane quadric: its fan triangles, added to every corner (GH97 per-face planes).
+    Quadric q;
+    const Vec3d& p0 = qm_.position(qm_.face_vertex(f, 0));
+    for (std::uint32_t i = 1; i + 1 < n; ++i) {
+      q += Quadric::from_triangle(p0, qm_.position(qm_.face_vertex(f, i)), qm_.position(qm_.face_vertex(f, i + 1)));
+    }
+    for (std::uint32_t i = 0; i < n; ++i) quadric_[qm_.face_vertex(f, i)] += q;
+    area += q.weight;
+    ++faces;
+    const Vec3d normal = qm_.face_normal(f);
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const std::uint32_t a = qm_.face_vertex(f, i), b = qm_.face_vertex(f, (i + 1) % n);
+      const Vec3d d = qm_.position(b) - qm_.position(a);
+      edge_sq += dot(d, d);
+      ++edges;
+      if (qm_.across(f, i).kind != QuadMesh::Across::boundary) continue;
+      const Quadric border =
+          Quadric::from_boundary_edge(qm_.position(a), qm_.position(b), normal, options_.border_weight);
+      quadric_[a] += border;
+      quadric_[b] += border;
+    }
+  }
+  // Painted priority scales a vertex's whole quadric: its collapses cost more (or less) in proportion.
+  if (mesh_.priority.size() == nv) {
+    for (std::size_t v = 0; v < nv; ++v) {
+      const double p = mesh_.priority[v];
+      if (std::isfinite(p) && p >= 0.0) quadric_[v] *= p;
+    }
+  }
+  const double mean_area = faces > 0 ? area / static_cast<double>(faces) : 0.0;
+  const double mean_edge_sq = edges > 0 ? edge_sq / static_cast<double>(edges) : 0.0;
+  penalty_ = options_.triangle_penalty * mean_area * mean_edge_sq;
+}
+
+// Cost of merging rung (a, b) at its best point; +inf when both ends are locked (neither may move).
+double Engine::rung_cost(const std::array<std::uint32_t, 2>& r) const {
+  const auto [a, b] = r;
+  if (qm_.locked(a) && qm_.locked(b)) return std::numeric_limits<double>::infinity();
+  const Quadric q = quadric_[a] + quadric_[b];
+  if (qm_.locked(a)) return q.evaluate(qm_.position(a));
+  if (qm_.locked(b)) return q.evaluate(qm_.position(b));
+  return place_on_edge(q, qm_.position(a), qm_.position(b)).error;
+}
+
+// Seed-and-grow search over one chord (ALGORITHMS.md 4.4): the cheapest seed window, grown one rung at either
+// end while cost per removed triangle improves (stopping once it is clearly worse), against the whole chord.
+// Runs never hold two rungs that share a vertex (self-touching or self-intersecting strips), and remove at
+// most `cap` triangles.
+std::optional<Candidate> Engine::best_candidate(const Chord& chord, long long cap) const {
+  const Polychord& p = chord.trace;
+  const std::size_t rungs = p.rungs.size(), quads = p.faces.size();
+  if (rungs == 0) return std::nullopt;
+  std::vector<double> cost(rungs);
+  std::vector<double> prefix(rungs + 1, 0.0);
+  std::vector<std::uint8_t> usable(rungs);
+  for (std::size_t k = 0; k < rungs; ++k) {
+    cost[k] = rung_cost(p.rungs[k]);
+    usable[k] = std::isfinite(cost[k]);
+    prefix[k + 1] = prefix[k] + (usable[k] ? cost[k] : 0.0);
+  }
+  const std::vector<long long> conflict = rung_conflicts(p);
+  // What an open end of a run does: in a quad, turns it into a triangle (removes 1, leaves 1); at a triangle
+  // the chord ends in, deletes it (removes 1, closes 1); at a boundary, nothing.
+  auto end_effect = [&](bool inner, int side) -> std::pair<int, int> {  // (removed, triangles left)
+    if (inner) return {1, 1};
+    if (p.ends[side] == ChordEnd::triangle) return {1, -1};
+    return {0, 0};
+  };
+  auto evaluate = [&](std::size_t i, std::size_t j, double worst) {
+    Candidate c{static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(j), 0, 0, 0};
+    long long& left = c.left;
+    if (p.closed && j - i + 1 == rungs) {
+      c.removed = 2 * static_cast<long long>(quads);
+      left = 0;
+    } else if (p.closed) {
+      c.removed = 2 * static_cast<long long>(j - i) + 2;
+      left = 2;
+    } else {
+      const auto [r0, t0] = end_effect(i > 0, 0);
+      const auto [r1, t1] = end_effect(j < quads, 1);
+      c.removed = 2 * static_cast<long long>(j - i) + r0 + r1;
+      left = t0 + t1;
+    }
+    c.cost = std::max(0.0, prefix[j + 1] - prefix[i] + penalty_ * static_cast<double>(left));
+    c.key = c.removed > 0 ? c.cost / static_cast<double>(c.removed) : std::numeric_limits<double>::infinity();
+    // A long cheap run must not carry one expensive rung along: rank it no better than its worst rung.
+    c.key = std::max(c.key, options_.worst_rung_weight * 0.5 * worst);
+    return c;
+  };
+  const long long max_left = triangles_left_allowed();
+  auto fits = [&](const Candidate& c) { return c.removed > 0 && c.removed <= cap && c.left <= std::max(0LL, max_left); };
+  auto better = [](const Candidate& a, const Candidate& b) {
+    return a.key < b.key || (a.key == b.key && a.removed > b.removed);
+  };
+
+  std::optional<Candidate> best;
+  // Whole chord: every rung usable and no two sharing a vertex.
+  const bool whole_valid = chord.whole_allowed && !p.self_touching &&
+                           std::all_of(usable.begin(), usable.end(), [](std::uint8_t u) { return u != 0; });
+  if (whole_valid) {
+    const Candidate whole = evaluate(0, rungs - 1, *std::max_element(cost.begin(), cost.end()));
+    if (fits(whole)) best = whole;
+  }
+
+  const std::size_t max_run = std::min(chord.max_run, rungs);
+  if (max_run == 0) return best;
+  // Seed: the cheapest valid window of seed_rungs rungs (fewer if no such window exists).
+  std::optional<Candidate> seed;
+  for (std::size_t len = std::min<std::size_t>(std::max(options_.seed_rungs, 1), max_run); len >= 1 && !seed; --len) {
+    for (std::size_t i = 0; i + len <= rungs; ++i) {
+      const std::size_t j = i + len - 1;
+      bool ok = true;
+      for (std::size_t k = i; k <= j && ok; ++k) ok = usable[k] && conflict[k] < static_cast<long long>(i);
+      if (!ok) continue;
+      const Candidate c = evaluate(i, j, *std::max_element(cost.begin() + i, cost.begin() + j + 1));
+      if (fits(c) && (!seed || better(c, *seed))) seed = c;
+    }
+  }
+  if (!seed) return best;
+  Candidate run = *seed, best_run = *seed;
+  double run_worst = *std::max_element(cost.begin() + run.first, cost.begin() + run.last + 1);
+  long long max_conflict = -1;
+  for (std::size_t k = run.first; k <= run.last; ++k) max_conflict = std::max(max_conflict, conflict[k]);
+  // Growth stops once the ratio is this much worse than the best seen (ALGORITHMS.md: "clearly worse").
+  constexpr double kGiveUpFactor = 2.0;
+  while (run.last - run.first + 1 < max_run) {
+    std::optional<Candidate> option;
+    bool grow_right = false;
+    if (run.first > 0 && usable[run.first - 1] && max_conflict < static_cast<long long>(run.first) - 1) {
+      const Candidate c = evaluate(run.first - 1, run.last, std::max(run_worst, cost[run.first - 1]));
+      if (fits(c)) option = c;
+    }
+    if (run.last + 1 < rungs && usable[run.last + 1] && conflict[run.last + 1] < static_cast<long long>(run.first)) {
+      const Candidate c = evaluate(run.first, run.last + 1, std::max(run_worst, cost[run.last + 1]));
+      if (fits(c) && (!option || !better(*option, c))) {
+        option = c;
+        grow_right = true;
+      }
+    }
+    if (!option) break;
+    if (grow_right) max_conflict = std::max(max_conflict, conflict[run.last + 1]);
+    run_worst = std::max(run_worst, cost[grow_right ? run.last + 1 : run.first - 1]);
+    run = *option;
+    if (better(run, best_run)) best_run = run;
+    if (run.key > kGiveUpFactor * best_run.key && run.key > 0.0) break;
+  }
+  if (!best || better(best_run, *best)) best = best_run;
+  return best;
+}
+
+// Islands of a run: its rungs, joined where they share a vertex (union-find), each placed by its summed
+// quadric.
+IslandPlan Engine::plan(const Chord& chord, const Candidate& c) const {
+  IslandPlan out;
+  const Polychord& p = chord.trace;
+  std::vector<std::uint32_t> verts;
+  for (std::uint32_t k = c.first; k <= c.last; ++k) verts.insert(verts.end(), p.rungs[k].begin(), p.rungs[k].end());
+  std::sort(verts.begin(), verts.end());
+  verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
+  std::vector<std::uint32_t> parent(verts.size());
+  for (std::uint32_t i = 0; i < parent.size(); ++i) parent[i] = i;
+  auto index = [&](std::uint32_t v) {
+    return static_cast<std::uint32_t>(std::lower_bound(verts.begin(), verts.end(), v) - verts.begin());
+  };
+  auto root = [&](std::uint32_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  for (std::uint32_t k = c.first; k <= c.last; ++k) {
+    const std::uint32_t a = root(index(p.rungs[k][0])), b = root(index(p.rungs[k][1]));
+    if (a != b) parent[std::max(a, b)] = std::min(a, b);
+  }
+  std::vector<std::uint32_t> island_of(verts.size(), kInvalidIndex);
+  for (std::uint32_t i = 0; i < verts.size(); ++i) {
+    const std::uint32_t r = root(i);
+    if (island_of[r] == kInvalidIndex) {
+      island_of[r] = static_cast<std::uint32_t>(out.islands.size());
+      out.islands.emplace_back();
+    }
+    out.islands[island_of[r]].push_back(verts[i]);
+  }
+  for (const auto& island : out.islands) {
+    Quadric q;
+    std::uint32_t locked = kInvalidIndex;
+    Vec3d centroid{};
+    for (std::uint32_t v : island) {
+      q += quadric_[v];
+      centroid = centroid + qm_.position(v);
+      if (qm_.locked(v)) locked = v;
+    }
+    centroid = centroid * (1.0 / static_cast<double>(island.size()));
+    Vec3d x;
+    if (locked != kInvalidIndex) {
+      x = qm_.position(locked);
+    } else if (island.size() == 2) {
+      x = place_on_edge(q, qm_.position(island[0]), qm_.position(island[1])).position;
+    } else {
+      // Larger islands: the minimiser when well conditioned, else the best of the centroid and the members.
+      x = centroid;
+      double best = q.evaluate(centroid);
+      for (std::uint32_t v : island) {
+        if (q.evaluate(qm_.position(v)) < best) {
+          best = q.evaluate(qm_.position(v));
+          x = qm_.position(v);
+        }
+      }
+      if (const auto m = q.minimizer(kMinPivotRelative)) x = *m;
+    }
+    const double e = q.evaluate(x);
+    out.max_error = std::max(out.max_error, q.weight > 0.0 ? std::sqrt(e / q.weight) : 0.0);
+    out.positions.push_back(x);
+    out.quadrics.push_back(q);
+  }
+  return out;
+}
+
+void Engine::push(std::uint32_t id) {
+  Chord& chord = chords_[id];
+  const long long remaining = static_cast<long long>(qm_.triangle_count()) - static_cast<long long>(target_);
+  if (const auto c = best_candidate(chord, remaining + slack_)) {
+    chord.best = *c;
+    chord.queued = true;
+    queue_.push({c->key, c->removed, id, chord.version});
+  }
+}
+
+void Engine::trace_from(std::uint32_t face, int direction) {
+  const auto id = static_cast<std::uint32_t>(chords_.size());
+  Chord chord;
+  chord.trace = trace_polychord(qm_, face, direction);
+  for (std::size_t k = 0; k < chord.trace.faces.size(); ++k) {
+    face_chord_[chord.trace.faces[k]][chord.trace.directions[k]] = id;
+  }
+  chords_.push_back(std::move(chord));
+  push(id);
+}
+
+void Engine::mark_stale(std::uint32_t id) {
+  Chord& chord = chords_[id];
+  if (chord.state != Chord::State::alive) return;
+  chord.state = Chord::State::stale;
+  // A chord without an entry (nothing valid last time) gets one, so that it is looked at again.
+  if (!chord.queued) {
+    chord.queued = true;
+    queue_.push({0.0, 0, id, chord.version});
+  }
+}
+
+// Re-traces a stale chord through those of its quads (and directions) no newer chord has claimed yet: the
+// old strip may have been cut in several, or joined to another.
+void Engine::retrace(std::uint32_t id) {
+  const Polychord old = std::move(chords_[id].trace);
+  chords_[id].state = Chord::State::dead;
+  for (std::size_t k = 0; k < old.faces.size(); ++k) {
+    const std::uint32_t f = old.faces[k], d = old.directions[k];
+    if (qm_.face_size(f) == 4 && face_chord_[f][d] == id) trace_from(f, static_cast<int>(d));
+  }
+}
+
+// After a weld: every chord through a face around a touched vertex may have changed (its rungs' quadrics, its
+// length, its ends, its validity): those go stale. Faces that stopped being quads leave their chords; faces
+// that became quads (an n-gon losing a corner) start new ones.
+void Engine::invalidate_around(const WeldResult& w) {
+  std::vector<std::uint32_t> faces = w.faces;
+  for (std::uint32_t f : w.faces) {
+    for (std::uint32_t i = 0; i < qm_.face_size(f); ++i) {
+      const auto& around = qm_.vertex_faces(qm_.face_vertex(f, i));
+      faces.insert(faces.end(), around.begin(), around.end());
+    }
+  }
+  std::sort(faces.begin(), faces.end());
+  faces.erase(std::unique(faces.begin(), faces.end()), faces.end());
+  for (std::uint32_t f : faces) {
+    for (std::uint32_t& id : face_chord_[f]) {
+      if (id == kInvalidIndex) continue;
+      mark_stale(id);
+      if (qm_.face_size(f) != 4) id = kInvalidIndex;
+    }
+  }
+  for (std::uint32_t f : faces) {
+    if (qm_.face_size(f) != 4) continue;
+    for (int d = 0; d < 2; ++d) {
+      if (face_chord_[f][d] == kInvalidIndex) trace_from(f, d);
+    }
+  }
+}
+
+PolychordResult Engine::run() {
+  PolychordResult result;
+  result.triangles_before = qm_.triangle_count();
+  result.quads_before = qm_.face_kinds().quads;
+  face_chord_.assign(qm_.face_slots(), {kInvalidIndex, kInvalidIndex});
+  for (std::uint32_t f = 0; f < qm_.face_slots(); ++f) {
+    if (qm_.face_size(f) != 4) continue;
+    for (int d = 0; d < 2; ++d) {
+      if (face_chord_[f][d] == kInvalidIndex) trace_from(f, d);
+    }
+  }
+
+  const double budget = options_.max_error_abs;
+  while (qm_.triangle_count() > target_) {
+    if (queue_.empty()) {
+      // The triangle budget is a preference, not a limit: when only runs that leave triangles are left,
+      // double it (up to no limit) and score every chord again rather than hand the rest to the triangle
+      // engine.
+      if (triangle_budget_ == kUnlimited) break;
+      triangle_budget_ = triangle_budget_ > static_cast<long long>(target_) ? kUnlimited
+                                                                            : std::max(2 * triangle_budget_, 16LL);
+      for (std::uint32_t id = 0; id < chords_.size(); ++id) {
+        if (chords_[id].state == Chord::State::dead) continue;
+        ++chords_[id].version;
+        chords_[id].queued = false;
+        if (chords_[id].state == Chord::State::stale) {
+          chords_[id].queued = true;
+          queue_.push({0.0, 0, id, chords_[id].version});
+        } else {
+          push(id);
+        }
+      }
+      continue;
+    }
+    const Entry e = queue_.top();
+    queue_.pop();
+    Chord& chord = chords_[e.chord];
+    if (chord.version != e.version) continue;
+    chord.queued = false;
+    if (chord.state == Chord::State::stale) retrace(e.chord);
+    if (chord.state != Chord::State::alive) continue;
+    const long long remaining = static_cast<long long>(qm_.triangle_count()) - static_cast<long long>(target_);
+    // The cap tightened, or the triangle budget ran out, since it was queued.
+    if (chord.best.removed > remaining + slack_ || (chord.best.left > 0 && chord.best.left > triangles_left_allowed())) {
+      ++chord.version;
+      push(e.chord);
+      continue;
+    }
+    const Candidate candidate = chord.best;
+    const IslandPlan islands = plan(chord, candidate);
+    if (budget >= 0.0 && islands.max_error > budget) continue;  // stays out until its neighbourhood changes
+    const WeldResult w = qm_.weld(islands.islands, islands.positions, weld_options_);
+    if (!w.ok()) {
+      ++rejected_;
+      ++chord.version;
+      const bool whole = candidate.first == 0 && candidate.last + 1 == chord.trace.rungs.size();
+      if (whole && chord.whole_allowed) chord.whole_allowed = false;
+      else chord.max_run = (candidate.last - candidate.first + 1) / 2;
+      push(e.chord);
+      continue;
+    }
+    for (std::size_t k = 0; k < w.survivors.size(); ++k) quadric_[w.survivors[k]] = islands.quadrics[k];
+    error_bound_ = std::max(error_bound_, islands.max_error);
+    ++collapses_;
+    invalidate_around(w);
+  }
+
+  result.mesh = qm_.to_mesh(mesh_);
+  result.triangles_after = qm_.triangle_count();
+  result.quads_after = qm_.face_kinds().quads;
+  result.target_reached = result.triangles_after <= target_;
+  result.error_bound_abs = error_bound_;
+  result.collapses = collapses_;
+  result.rejected = rejected_;
+  return result;
+}
+
+}  // namespace
+
+bool run_allowed(const Polychord& chord, std::size_t first, std::size_t last) {
+  if (first > last || last >= chord.rungs.size()) return false;
+  const std::vector<long long> conflict = rung_conflicts(chord);
+  for (std::size_t k = first; k <= last; ++k) {
+    if (conflict[k] >= static_cast<long long>(first)) return false;
+  }
+  return true;
+}
+
+PolychordResult simplify_polychord(const Mesh& mesh, const PolychordOptions& options) {
+  if (!(options.target_ratio > 0.0 && options.target_ratio <= 1.0)) {
+    throw std::invalid_argument("polychord: target_ratio must be in (0, 1], got " + std::to_string(options.target_ratio));
+  }
+  if (!(options.max_flip_angle_deg > 0.0 && options.max_flip_angle_deg < 90.0)) {
+    throw std::invalid_argument("polychord: max_flip_angle_deg must be in (0, 90)");
+  }
+  if (!(options.triangle_penalty >= 0.0 && std::isfinite(options.triangle_penalty)) ||
+      !(options.worst_rung_weight >= 0.0 && std::isfinite(options.worst_rung_weight)) ||
+      !(options.max_triangle_fraction >= 0.0) || options.seed_rungs < 1 || std::isnan(options.max_error_abs)) {
+    throw std::invalid_argument(
+        "polychord: triangle_penalty and worst_rung_weight must be finite and >= 0, max_triangle_fraction >= 0, "
+        "seed_rungs >= 1, max_error_abs not NaN");
+  }
+  for (std::uint32_t v : options.locked_vertices) {
+    if (v >= mesh.vertex_count()) {
+      throw std::invalid_argument("polychord: locked vertex " + std::to_string(v) + " out of range (" +
+                                  std::to_string(mesh.vertex_count()) + " vertices)");
+    }
+  }
+  const FaceKindCounts kinds = count_face_kinds(mesh);
+  Mesh recovered;
+  std::size_t made = 0;
+  const bool recover = options.recover_quads && kinds.quads == 0 && kinds.triangles > 0;
+  if (recover) recovered = recover_quads(mesh, {}, &made);
+  const Mesh& input = recover ? recovered : mesh;
+  const std::size_t input_triangles = mesh.triangle_count();
+  const std::size_t target = options.target_triangles != 0
+                                 ? options.target_triangles
+                                 : static_cast<std::size_t>(std::llround(options.target_ratio *
+                                                                         static_cast<double>(input_triangles)));
+  Engine engine(input, options, target);
+  PolychordResult r = engine.run();
+  r.recovered_quads = made;
+  // Triangles left by neighbouring runs often pair up into quads without moving anything: the quad's fan
+  // triangulation from its first corner is the two triangles as they were.
+  if (count_face_kinds(r.mesh).triangles >= 2) {
+    r.mesh = recover_quads(r.mesh, {}, &r.paired_triangles);
+    r.quads_after += r.paired_triangles;
+  }
+  r.quads_before = kinds.quads;
+  return r;
+}
+
+}  // namespace lodforge::quad

@@ -1,0 +1,673 @@
+// The quad part's working mesh and the generalised weld operator (ALGORITHMS.md 4.5; the weld idea is from
+// A. Mason, "Quad Mesh Simplification in Frostbite", GDC 2020, on top of the polychord collapse of Daniels,
+// Silva, Shepherd & Cohen, "Quadrilateral mesh simplification", SIGGRAPH Asia 2008).
+#include "lodforge/quad/quad_mesh.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <tuple>
+
+namespace lodforge::quad {
+
+const char* weld_failure_name(WeldFailure f) {
+  switch (f) {
+    case WeldFailure::none: return "none";
+    case WeldFailure::bad_island: return "bad_island";
+    case WeldFailure::locked: return "locked";
+    case WeldFailure::seam: return "seam";
+    case WeldFailure::folded_polygon: return "folded_polygon";
+    case WeldFailure::non_manifold_edge: return "non_manifold_edge";
+    case WeldFailure::non_manifold_vertex: return "non_manifold_vertex";
+    case WeldFailure::duplicate_face: return "duplicate_face";
+    case WeldFailure::flipped: return "flipped";
+    case WeldFailure::degenerate: return "degenerate";
+    case WeldFailure::euler: return "euler";
+  }
+  return "unknown";
+}
+
+namespace {
+
+bool finite(const Vec3d& p) { return std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]); }
+
+std::uint64_t edge_key(std::uint32_t a, std::uint32_t b) {
+  if (a > b) std::swap(a, b);
+  return (std::uint64_t{a} << 32) | b;
+}
+
+std::uint32_t find_root(std::vector<std::uint32_t>& parent, std::uint32_t x) {
+  while (parent[x] != x) {
+    parent[x] = parent[parent[x]];
+    x = parent[x];
+  }
+  return x;
+}
+
+// Newell normal of a polygon given by positions.
+Vec3d newell(const std::vector<Vec3d>& p) {
+  Vec3d n{};
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    const Vec3d& a = p[i];
+    const Vec3d& b = p[(i + 1) % p.size()];
+    n[0] += (a[1] - b[1]) * (a[2] + b[2]);
+    n[1] += (a[2] - b[2]) * (a[0] + b[0]);
+    n[2] += (a[0] - b[0]) * (a[1] + b[1]);
+  }
+  return n;
+}
+
+// Whether corner i of polygon p turns the same way as normal n (convex corner).
+bool corner_convex(const std::vector<Vec3d>& p, std::size_t i, const Vec3d& n) {
+  const std::size_t k = p.size();
+  const Vec3d c = cross(p[(i + 1) % k] - p[i], p[(i + k - 1) % k] - p[i]);
+  return dot(c, n) > 0.0;
+}
+
+}  // namespace
+
+// Everything a weld changes, to put back on failure.
+struct QuadMesh::Undo {
+  struct Face {
+    std::uint32_t id, size;
+    std::vector<std::uint32_t> vertices, wedges;
+    std::vector<Vec3d> points;  // corner positions before the weld (for the flip test)
+  };
+  std::vector<Face> faces;
+  struct Vertex {
+    std::uint32_t id;
+    Vec3d position;
+    std::uint8_t dead, moved;
+    std::vector<std::uint32_t> faces;
+  };
+  std::vector<Vertex> vertices;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> wedge_vertex;  // (wedge, vertex before)
+  std::size_t triangles = 0, triangle_faces = 0;
+  long long edges_before = 0;
+  long long removed_vertices = 0;
+  long long killed_faces = 0;
+};
+
+QuadMesh::QuadMesh(const Mesh& mesh) {
+  const std::size_t nv = mesh.vertex_count(), nw = mesh.wedge_count(), nf = mesh.face_count();
+  positions_.resize(nv);
+  for (std::size_t v = 0; v < nv; ++v) positions_[v] = to_double(mesh.positions[v]);
+  locked_.assign(nv, 0);
+  vertex_dead_.assign(nv, 0);
+  moved_.assign(nv, 0);
+  wedge_vertex_ = mesh.wedge_vertex;
+  corner_vertex_.assign(mesh.corner_count(), kInvalidIndex);
+  corner_wedge_ = mesh.corner_wedge;
+  face_begin_.assign(nf, 0);
+  face_size_.assign(nf, 0);
+  face_material_.assign(nf, 0);
+  vertex_faces_.resize(nv);
+  island_of_.assign(nv, kInvalidIndex);
+  wedge_parent_.assign(nw, kInvalidIndex);
+
+  for (std::uint32_t f = 0; f < nf; ++f) {
+    const std::uint32_t b = mesh.face_offsets[f], n = mesh.face_size(f);
+    face_begin_[f] = b;
+    face_material_[f] = f < mesh.face_material.size() ? mesh.face_material[f] : 0;
+    if (n < 3) continue;
+    bool ok = true;
+    for (std::uint32_t i = 0; i < n && ok; ++i) {
+      const std::uint32_t w = mesh.corner_wedge[b + i];
+      ok = w < nw && mesh.wedge_vertex[w] < nv;
+      if (ok) corner_vertex_[b + i] = mesh.wedge_vertex[w];
+    }
+    for (std::uint32_t i = 0; i < n && ok; ++i) {
+      for (std::uint32_t j = i + 1; j < n && ok; ++j) ok = corner_vertex_[b + i] != corner_vertex_[b + j];
+    }
+    if (!ok) continue;
+    face_size_[f] = n;
+    triangles_ += n - 2;
+    if (n == 3) ++triangle_faces_;
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const std::uint32_t v = corner_vertex_[b + i];
+      vertex_faces_[v].push_back(f);
+      // n-gons are carried unchanged: their corners never move.
+      if (n > 4 || !finite(positions_[v])) locked_[v] = 1;
+    }
+  }
+
+  // Non-manifold and inconsistently oriented edges: sort the directed sides by undirected edge.
+  std::vector<std::pair<std::uint64_t, bool>> sides;  // (edge, forward)
+  for (std::uint32_t f = 0; f < nf; ++f) {
+    const std::uint32_t n = face_size_[f];
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const std::uint32_t a = face_vertex(f, i), b = face_vertex(f, (i + 1) % n);
+      sides.emplace_back(edge_key(a, b), a < b);
+    }
+  }
+  std::sort(sides.begin(), sides.end());
+  for (std::size_t i = 0; i < sides.size();) {
+    std::size_t j = i;
+    int forward = 0, backward = 0;
+    for (; j < sides.size() && sides[j].first == sides[i].first; ++j) (sides[j].second ? forward : backward)++;
+    if (forward > 1 || backward > 1) {
+      locked_[sides[i].first >> 32] = 1;
+      locked_[sides[i].first & 0xffffffffu] = 1;
+    }
+    i = j;
+  }
+  for (std::uint32_t v = 0; v < nv; ++v) {
+    if (!vertex_faces_[v].empty() && !fan_is_single(v)) locked_[v] = 1;
+  }
+}
+
+FaceKindCounts QuadMesh::face_kinds() const {
+  FaceKindCounts k;
+  for (std::uint32_t n : face_size_) {
+    if (n == 3) ++k.triangles;
+    else if (n == 4) ++k.quads;
+    else if (n > 4) ++k.polygons;
+  }
+  return k;
+}
+
+std::uint32_t QuadMesh::corner_of(std::uint32_t f, std::uint32_t v) const {
+  const std::uint32_t n = face_size_[f], b = face_begin_[f];
+  for (std::uint32_t i = 0; i < n; ++i) {
+    if (corner_vertex_[b + i] == v) return i;
+  }
+  return kInvalidIndex;
+}
+
+QuadMesh::Across QuadMesh::across(std::uint32_t f, std::uint32_t side) const {
+  const std::uint32_t n = face_size_[f];
+  const std::uint32_t x = face_vertex(f, side), y = face_vertex(f, (side + 1) % n);
+  Across result;
+  int twins = 0, same_way = 0;
+  for (std::uint32_t g : vertex_faces_[x]) {
+    if (g == f) continue;
+    const std::uint32_t m = face_size_[g], i = corner_of(g, x);
+    if (face_vertex(g, (i + 1) % m) == y) ++same_way;
+    if (face_vertex(g, (i + m - 1) % m) == y) {
+      ++twins;
+      result.face_id = g;
+      result.side = (i + m - 1) % m;
+    }
+  }
+  if (twins == 0 && same_way == 0) return {Across::boundary, kInvalidIndex, 0};
+  if (twins == 1 && same_way == 0) {
+    result.kind = Across::face;
+    return result;
+  }
+  return {Across::non_manifold, kInvalidIndex, 0};
+}
+
+Vec3d QuadMesh::face_normal(std::uint32_t f) const {
+  std::vector<Vec3d> p(face_size_[f]);
+  for (std::uint32_t i = 0; i < p.size(); ++i) p[i] = positions_[face_vertex(f, i)];
+  return newell(p);
+}
+
+// A vertex fan is a single disc or half-disc when its faces, linked through shared spokes (this face's edge
+// v→y is the next face's edge y→v), form one connected chain.
+bool QuadMesh::fan_is_single(std::uint32_t v) const {
+  const std::vector<std::uint32_t>& fan = vertex_faces_[v];
+  const std::size_t n = fan.size();
+  if (n <= 1) return true;
+  std::vector<std::uint32_t> out_spoke(n), in_spoke(n), parent(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::uint32_t f = fan[k], m = face_size_[f], i = corner_of(f, v);
+    out_spoke[k] = face_vertex(f, (i + 1) % m);
+    in_spoke[k] = face_vertex(f, (i + m - 1) % m);
+    parent[k] = static_cast<std::uint32_t>(k);
+  }
+  std::size_t components = n;
+  for (std::size_t a = 0; a < n; ++a) {
+    for (std::size_t b = 0; b < n; ++b) {
+      if (a == b || out_spoke[a] != in_spoke[b]) continue;
+      const std::uint32_t ra = find_root(parent, static_cast<std::uint32_t>(a));
+      const std::uint32_t rb = find_root(parent, static_cast<std::uint32_t>(b));
+      if (ra != rb) {
+        parent[ra] = rb;
+        --components;
+      }
+    }
+  }
+  return components == 1;
+}
+
+// Distinct undirected edges among the sides of `faces` (alive ones only).
+long long QuadMesh::local_euler_edges(const std::vector<std::uint32_t>& faces) const {
+  std::vector<std::uint64_t> keys;
+  for (std::uint32_t f : faces) {
+    const std::uint32_t n = face_size_[f];
+    for (std::uint32_t i = 0; i < n; ++i) keys.push_back(edge_key(face_vertex(f, i), face_vertex(f, (i + 1) % n)));
+  }
+  std::sort(keys.begin(), keys.end());
+  return static_cast<long long>(std::unique(keys.begin(), keys.end()) - keys.begin());
+}
+
+WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands,
+                          const std::vector<Vec3d>& island_positions, const WeldOptions& options) {
+  WeldResult result;
+  const std::size_t nv = positions_.size();
+  std::vector<std::uint32_t> assigned;  // island_of_ entries to reset
+  auto reset_scratch = [&] {
+    for (std::uint32_t v : assigned) island_of_[v] = kInvalidIndex;
+  };
+
+  // 1. Islands: disjoint, alive, at most one locked vertex each; pick survivors.
+  bool bad = islands.size() != island_positions.size();
+  for (std::uint32_t k = 0; k < islands.size() && !bad; ++k) {
+    if (islands[k].size() < 2) bad = true;
+    for (std::uint32_t v : islands[k]) {
+      if (bad || v >= nv || vertex_dead_[v] || island_of_[v] != kInvalidIndex) {
+        bad = true;
+        break;
+      }
+      island_of_[v] = k;
+      assigned.push_back(v);
+    }
+  }
+  if (bad) {
+    reset_scratch();
+    result.failure = WeldFailure::bad_island;
+    return result;
+  }
+  std::vector<std::uint32_t> affected;
+  for (const auto& island : islands) {
+    for (std::uint32_t v : island) affected.insert(affected.end(), vertex_faces_[v].begin(), vertex_faces_[v].end());
+  }
+  std::sort(affected.begin(), affected.end());
+  affected.erase(std::unique(affected.begin(), affected.end()), affected.end());
+
+  auto wedge_count_of = [&](std::uint32_t v) {
+    std::vector<std::uint32_t> ws;
+    for (std::uint32_t f : vertex_faces_[v]) ws.push_back(face_wedge(f, corner_of(f, v)));
+    std::sort(ws.begin(), ws.end());
+    return static_cast<std::size_t>(std::unique(ws.begin(), ws.end()) - ws.begin());
+  };
+  std::vector<std::uint32_t>& survivors = result.survivors;
+  std::vector<Vec3d> targets = island_positions;
+  for (std::uint32_t k = 0; k < islands.size(); ++k) {
+    std::uint32_t best = kInvalidIndex, locked_count = 0;
+    std::size_t best_wedges = 0;
+    for (std::uint32_t v : islands[k]) {
+      if (locked_[v]) {
+        ++locked_count;
+        best = v;
+        targets[k] = positions_[v];
+        best_wedges = static_cast<std::size_t>(-1);
+        continue;
+      }
+      const std::size_t w = wedge_count_of(v);
+      if (best == kInvalidIndex || w > best_wedges || (w == best_wedges && v < best)) {
+        best = v;
+        best_wedges = w;
+      }
+    }
+    if (locked_count > 1) {
+      reset_scratch();
+      result.failure = WeldFailure::locked;
+      return result;
+    }
+    survivors.push_back(best);
+  }
+
+  // 2. Wedge classes: wedges meeting across a side whose ends share an island merge.
+  std::vector<std::uint32_t> wedges_used;  // wedge_parent_ entries to reset
+  auto touch_wedge = [&](std::uint32_t w) {
+    if (wedge_parent_[w] == kInvalidIndex) {
+      wedge_parent_[w] = w;
+      wedges_used.push_back(w);
+    }
+  };
+  for (std::uint32_t f : affected) {
+    const std::uint32_t n = face_size_[f];
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const std::uint32_t a = face_vertex(f, i), b = face_vertex(f, (i + 1) % n);
+      if (island_of_[a] == kInvalidIndex) continue;
+      const std::uint32_t wa = face_wedge(f, i);
+      touch_wedge(wa);
+      if (island_of_[b] != island_of_[a]) continue;
+      const std::uint32_t wb = face_wedge(f, (i + 1) % n);
+      touch_wedge(wb);
+      const std::uint32_t ra = find_root(wedge_parent_, wa), rb = find_root(wedge_parent_, wb);
+      if (ra != rb) wedge_parent_[std::max(ra, rb)] = std::min(ra, rb);
+    }
+  }
+  // (class root, vertex, wedge): a class may hold one wedge per vertex.
+  std::vector<std::tuple<std::uint32_t, std::uint32_t, std::uint32_t>> members;
+  for (std::uint32_t w : wedges_used) members.emplace_back(find_root(wedge_parent_, w), wedge_vertex_[w], w);
+  std::sort(members.begin(), members.end());
+  bool seam = false;
+  for (std::size_t i = 1; i < members.size(); ++i) {
+    if (std::get<0>(members[i]) == std::get<0>(members[i - 1]) && std::get<1>(members[i]) == std::get<1>(members[i - 1])) {
+      seam = true;
+    }
+  }
+  // Class representative: the survivor's wedge, else the lowest id (the root).
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> class_rep;  // (root, wedge)
+  for (const auto& [root, v, w] : members) {
+    const std::uint32_t k = island_of_[v];
+    if (k != kInvalidIndex && survivors[k] == v) class_rep.emplace_back(root, w);
+  }
+  auto wedge_target = [&](std::uint32_t w) {
+    const std::uint32_t root = find_root(wedge_parent_, w);
+    const auto it = std::lower_bound(class_rep.begin(), class_rep.end(), std::make_pair(root, std::uint32_t{0}));
+    return it != class_rep.end() && it->first == root ? it->second : root;
+  };
+  auto reset_all = [&] {
+    reset_scratch();
+    for (std::uint32_t w : wedges_used) wedge_parent_[w] = kInvalidIndex;
+  };
+  if (seam) {
+    reset_all();
+    result.failure = WeldFailure::seam;
+    return result;
+  }
+
+  // 3. New corner lists, before anything is written (a folded polygon refuses the whole weld).
+  std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> new_faces(affected.size());  // (vertex, wedge)
+  for (std::size_t k = 0; k < affected.size(); ++k) {
+    const std::uint32_t f = affected[k], n = face_size_[f];
+    auto& poly = new_faces[k];
+    for (std::uint32_t i = 0; i < n; ++i) {
+      std::uint32_t v = face_vertex(f, i), w = face_wedge(f, i);
+      if (island_of_[v] != kInvalidIndex) {
+        v = survivors[island_of_[v]];
+        w = wedge_target(w);
+      }
+      if (poly.empty() || poly.back().first != v) poly.emplace_back(v, w);
+    }
+    while (poly.size() > 1 && poly.front().first == poly.back().first) poly.pop_back();
+    if (poly.size() < 3) {
+      poly.clear();
+      continue;
+    }
+    for (std::size_t i = 0; i < poly.size(); ++i) {
+      for (std::size_t j = i + 1; j < poly.size(); ++j) {
+        if (poly[i].first == poly[j].first) {
+          reset_all();
+          result.failure = WeldFailure::folded_polygon;
+          return result;
+        }
+      }
+    }
+  }
+
+  // 4. Undo log.
+  Undo undo;
+  undo.triangles = triangles_;
+  undo.triangle_faces = triangle_faces_;
+  undo.edges_before = local_euler_edges(affected);
+  std::vector<std::uint32_t> touched;  // every vertex of an affected face
+  for (std::uint32_t f : affected) {
+    Undo::Face u{f, face_size_[f], {}, {}, {}};
+    for (std::uint32_t i = 0; i < face_size_[f]; ++i) {
+      u.vertices.push_back(face_vertex(f, i));
+      u.wedges.push_back(face_wedge(f, i));
+      u.points.push_back(positions_[face_vertex(f, i)]);
+      touched.push_back(face_vertex(f, i));
+    }
+    undo.faces.push_back(std::move(u));
+  }
+  std::sort(touched.begin(), touched.end());
+  touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+  for (std::uint32_t v : touched) undo.vertices.push_back({v, positions_[v], vertex_dead_[v], moved_[v], vertex_faces_[v]});
+  // Old edges between two vertices outside the islands may survive in faces the weld does not touch.
+  std::vector<std::uint64_t> outside_edges;
+  for (std::uint32_t f : affected) {
+    const std::uint32_t n = face_size_[f];
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const std::uint32_t a = face_vertex(f, i), b = face_vertex(f, (i + 1) % n);
+      if (island_of_[a] == kInvalidIndex && island_of_[b] == kInvalidIndex) outside_edges.push_back(edge_key(a, b));
+    }
+  }
+
+  // 5. Apply.
+  for (std::size_t k = 0; k < affected.size(); ++k) {
+    const std::uint32_t f = affected[k];
+    triangles_ -= face_size_[f] - 2;
+    if (face_size_[f] == 3) --triangle_faces_;
+    face_size_[f] = static_cast<std::uint32_t>(new_faces[k].size());
+    if (face_size_[f] == 0) {
+      ++undo.killed_faces;
+      continue;
+    }
+    triangles_ += face_size_[f] - 2;
+    if (face_size_[f] == 3) ++triangle_faces_;
+    for (std::uint32_t i = 0; i < face_size_[f]; ++i) {
+      corner_vertex_[face_begin_[f] + i] = new_faces[k][i].first;
+      corner_wedge_[face_begin_[f] + i] = new_faces[k][i].second;
+    }
+  }
+  for (std::uint32_t k = 0; k < islands.size(); ++k) {
+    for (std::uint32_t v : islands[k]) {
+      if (v == survivors[k]) continue;
+      vertex_dead_[v] = 1;
+      ++undo.removed_vertices;
+    }
+    const std::uint32_t s = survivors[k];
+    if (!locked_[s]) {
+      positions_[s] = targets[k];
+      moved_[s] = 1;
+    }
+  }
+  for (const auto& [root, v, w] : members) {
+    const std::uint32_t k = island_of_[v];
+    if (v != survivors[k]) {
+      undo.wedge_vertex.emplace_back(w, wedge_vertex_[w]);
+      wedge_vertex_[w] = survivors[k];
+    }
+  }
+  for (std::uint32_t v : touched) {
+    std::vector<std::uint32_t>& list = vertex_faces_[v];
+    if (vertex_dead_[v]) {
+      list.clear();
+    } else if (island_of_[v] != kInvalidIndex) {
+      list.clear();
+      for (std::uint32_t f : affected) {
+        if (face_size_[f] != 0 && corner_of(f, v) != kInvalidIndex) list.push_back(f);
+      }
+    } else {
+      std::erase_if(list, [&](std::uint32_t f) { return face_size_[f] == 0; });
+    }
+  }
+
+  // A vertex whose faces all vanished (the far corner of a strip's last quad when the run covers it, the apex
+  // of a deleted end triangle) leaves the mesh with them.
+  std::vector<std::uint32_t> alive_touched;
+  for (std::uint32_t v : touched) {
+    if (vertex_dead_[v]) continue;
+    if (vertex_faces_[v].empty()) {
+      vertex_dead_[v] = 1;
+      ++undo.removed_vertices;
+    } else {
+      alive_touched.push_back(v);
+    }
+  }
+
+  // 6. Validate; roll back on failure.
+  result.failure = check_after_weld(affected, alive_touched, undo, options);
+  if (result.ok()) {
+    // Euler characteristic: V - E + F must not change (edges counted locally; see header).
+    std::vector<std::uint64_t> keys;
+    for (std::uint32_t f : affected) {
+      const std::uint32_t n = face_size_[f];
+      for (std::uint32_t i = 0; i < n; ++i) keys.push_back(edge_key(face_vertex(f, i), face_vertex(f, (i + 1) % n)));
+    }
+    for (std::uint64_t e : outside_edges) {
+      const std::uint32_t a = static_cast<std::uint32_t>(e >> 32), b = static_cast<std::uint32_t>(e & 0xffffffffu);
+      for (std::uint32_t g : vertex_faces_[a]) {
+        if (corner_of(g, b) != kInvalidIndex) {
+          const std::uint32_t m = face_size_[g], i = corner_of(g, a);
+          if (face_vertex(g, (i + 1) % m) == b || face_vertex(g, (i + m - 1) % m) == b) {
+            keys.push_back(e);
+            break;
+          }
+        }
+      }
+    }
+    std::sort(keys.begin(), keys.end());
+    const long long edges_after = static_cast<long long>(std::unique(keys.begin(), keys.end()) - keys.begin());
+    const long long delta_euler = -undo.removed_vertices - (edges_after - undo.edges_before) - undo.killed_faces;
+    if (delta_euler != 0) result.failure = WeldFailure::euler;
+  }
+  reset_all();
+  if (!result.ok()) {
+    rollback(undo);
+    result.survivors.clear();
+    return result;
+  }
+  result.faces = affected;
+  result.triangles_removed = static_cast<long long>(undo.triangles) - static_cast<long long>(triangles_);
+  return result;
+}
+
+WeldFailure QuadMesh::check_after_weld(const std::vector<std::uint32_t>& faces,
+                                       const std::vector<std::uint32_t>& vertices, const Undo& undo,
+                                       const WeldOptions& options) const {
+  // Edges: each direction at most once (manifold, consistently oriented).
+  for (std::uint32_t f : faces) {
+    const std::uint32_t n = face_size_[f];
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const std::uint32_t x = face_vertex(f, i), y = face_vertex(f, (i + 1) % n);
+      int forward = 0, backward = 0;
+      for (std::uint32_t g : vertex_faces_[x]) {
+        const std::uint32_t m = face_size_[g], j = corner_of(g, x);
+        if (face_vertex(g, (j + 1) % m) == y) ++forward;
+        if (face_vertex(g, (j + m - 1) % m) == y) ++backward;
+      }
+      if (forward > 1 || backward > 1) return WeldFailure::non_manifold_edge;
+    }
+  }
+  // Duplicates: faces with the same vertex set share their lowest vertex.
+  for (std::uint32_t f : faces) {
+    const std::uint32_t n = face_size_[f];
+    if (n == 0) continue;
+    std::vector<std::uint32_t> key(n);
+    for (std::uint32_t i = 0; i < n; ++i) key[i] = face_vertex(f, i);
+    std::sort(key.begin(), key.end());
+    for (std::uint32_t g : vertex_faces_[key[0]]) {
+      if (g == f || face_size_[g] != n) continue;
+      std::vector<std::uint32_t> other(n);
+      for (std::uint32_t i = 0; i < n; ++i) other[i] = face_vertex(g, i);
+      std::sort(other.begin(), other.end());
+      if (other == key) return WeldFailure::duplicate_face;
+    }
+  }
+  for (std::uint32_t v : vertices) {
+    if (!fan_is_single(v)) return WeldFailure::non_manifold_vertex;
+  }
+  // Geometry: no face turns by more than the allowed angle, degenerates, or gets a new concave corner.
+  const double cos_max = std::cos(options.max_flip_angle_deg * std::numbers::pi / 180.0);
+  for (const Undo::Face& old : undo.faces) {
+    const std::uint32_t f = old.id, n = face_size_[f];
+    if (n == 0) continue;
+    std::vector<Vec3d> p(n);
+    for (std::uint32_t i = 0; i < n; ++i) p[i] = positions_[face_vertex(f, i)];
+    const Vec3d n_old = newell(old.points), n_new = newell(p);
+    const double l_old = length(n_old), l_new = length(n_new);
+    if (!(l_new > 1e-12 * l_old) || !(l_new > 0.0)) return WeldFailure::degenerate;
+    if (dot(n_old, n_new) < cos_max * l_old * l_new) return WeldFailure::flipped;
+    if (n == 4 && old.size == 4) {
+      for (std::uint32_t i = 0; i < 4; ++i) {
+        if (corner_convex(old.points, i, n_old) && !corner_convex(p, i, n_old)) return WeldFailure::flipped;
+      }
+    }
+  }
+  return WeldFailure::none;
+}
+
+void QuadMesh::rollback(const Undo& undo) {
+  for (const Undo::Face& u : undo.faces) {
+    face_size_[u.id] = u.size;
+    for (std::uint32_t i = 0; i < u.size; ++i) {
+      corner_vertex_[face_begin_[u.id] + i] = u.vertices[i];
+      corner_wedge_[face_begin_[u.id] + i] = u.wedges[i];
+    }
+  }
+  for (const Undo::Vertex& u : undo.vertices) {
+    positions_[u.id] = u.position;
+    vertex_dead_[u.id] = u.dead;
+    moved_[u.id] = u.moved;
+    vertex_faces_[u.id] = u.faces;
+  }
+  for (const auto& [w, v] : undo.wedge_vertex) wedge_vertex_[w] = v;
+  triangles_ = undo.triangles;
+  triangle_faces_ = undo.triangle_faces;
+}
+
+Mesh QuadMesh::to_mesh(const Mesh& m) const {
+  const std::size_t nw = m.wedge_count(), nv = m.vertex_count();
+  std::vector<std::uint32_t> wedge_map(nw, kInvalidIndex), vertex_map(nv, kInvalidIndex);
+  for (std::uint32_t f = 0; f < face_size_.size(); ++f) {
+    for (std::uint32_t i = 0; i < face_size_[f]; ++i) wedge_map[face_wedge(f, i)] = 0;
+  }
+  std::vector<std::uint32_t> wedges, vertices;  // kept ids, ascending
+  for (std::uint32_t w = 0; w < nw; ++w) {
+    if (wedge_map[w] == kInvalidIndex) continue;
+    wedge_map[w] = static_cast<std::uint32_t>(wedges.size());
+    wedges.push_back(w);
+    vertex_map[wedge_vertex_[w]] = 0;
+  }
+  for (std::uint32_t v = 0; v < nv; ++v) {
+    if (vertex_map[v] == kInvalidIndex) continue;
+    vertex_map[v] = static_cast<std::uint32_t>(vertices.size());
+    vertices.push_back(v);
+  }
+
+  Mesh out;
+  out.name = m.name;
+  out.materials = m.materials;
+  out.groups = m.groups;
+  out.formats = m.formats;
+  out.morph_default_weights = m.morph_default_weights;
+  out.positions.reserve(vertices.size());
+  for (std::uint32_t v : vertices) out.positions.push_back(moved_[v] ? to_float(positions_[v]) : m.positions[v]);
+  auto per_vertex = [&](const auto& in, auto& dst) {
+    if (in.size() != nv) return;
+    dst.reserve(vertices.size());
+    for (std::uint32_t v : vertices) dst.push_back(in[v]);
+  };
+  per_vertex(m.skin, out.skin);
+  per_vertex(m.priority, out.priority);
+  auto per_wedge = [&](const auto& in, auto& dst, std::size_t components) {
+    if (in.size() != nw * components) return;
+    dst.reserve(wedges.size() * components);
+    for (std::uint32_t w : wedges) {
+      for (std::size_t i = 0; i < components; ++i) dst.push_back(in[w * components + i]);
+    }
+  };
+  out.wedge_vertex.reserve(wedges.size());
+  for (std::uint32_t w : wedges) out.wedge_vertex.push_back(vertex_map[wedge_vertex_[w]]);
+  per_wedge(m.normals, out.normals, 1);
+  per_wedge(m.tangents, out.tangents, 1);
+  out.uvs.resize(m.uvs.size());
+  for (std::size_t i = 0; i < m.uvs.size(); ++i) per_wedge(m.uvs[i], out.uvs[i], 1);
+  out.colors.resize(m.colors.size());
+  for (std::size_t i = 0; i < m.colors.size(); ++i) per_wedge(m.colors[i], out.colors[i], 1);
+  out.color_components = m.color_components;
+  for (const CustomAttribute& a : m.custom) {
+    CustomAttribute c{a.name, a.components, a.format, {}};
+    per_wedge(a.values, c.values, static_cast<std::size_t>(std::max(a.components, 0)));
+    out.custom.push_back(std::move(c));
+  }
+  for (const MorphTarget& t : m.morph_targets) {
+    MorphTarget o{t.name, {}, {}, {}};
+    per_wedge(t.position_deltas, o.position_deltas, 1);
+    per_wedge(t.normal_deltas, o.normal_deltas, 1);
+    per_wedge(t.tangent_deltas, o.tangent_deltas, 1);
+    out.morph_targets.push_back(std::move(o));
+  }
+
+  const bool groups = m.face_group.size() == m.face_count();
+  out.face_offsets.assign(1, 0);
+  for (std::uint32_t f = 0; f < face_size_.size(); ++f) {
+    const std::uint32_t n = face_size_[f];
+    if (n == 0) continue;
+    for (std::uint32_t i = 0; i < n; ++i) out.corner_wedge.push_back(wedge_map[face_wedge(f, i)]);
+    out.face_offsets.push_back(static_cast<std::uint32_t>(out.corner_wedge.size()));
+    out.face_material.push_back(face_material_[f]);
+    if (groups) out.face_group.push_back(m.face_group[f]);
+  }
+  return out;
+}
+
+}  // namespace lodforge::quad

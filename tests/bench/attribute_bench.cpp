@@ -1,0 +1,272 @@
+// lodforge_bench_attributes: attribute-aware simplification on the glTF corpus (issue 4).
+//
+// Per asset (../shared/corpus gltf/ and skinned/) and ratio (default 50%, 25%, 10%), three runs:
+//   attr   lodforge with its default options (attribute-aware: seams, UV charts, attribute quadrics, skinning)
+//   pos    lodforge on the same triangles with positions only (one wedge per vertex, no attributes)
+//   meshopt  meshopt_simplify on those positions (the Debian version has no attribute API)
+// Printed: output triangles, mean surface distance (Metro, both ways, % of the diagonal), UV flips and
+// triangles spanning two UV charts, attribute RMS (normals, UV set 0, colour set 0; attr only), throughput
+// (input triangles per second, best of --reps). Every mesh of an asset is simplified to the ratio; the distance
+// is measured on the asset's meshes taken together.
+// Targets (issue 4), printed as MET / NOT MET:
+//   zero UV flips and zero chart merges for attr on every asset at every ratio;
+//   geometric mean of attr's mean distance within 1.15x of pos's;
+//   attr throughput (all assets and ratios together) at least 0.6x pos's.
+// Timings are only meaningful on an otherwise idle machine. Never part of the tests; exits 0 whatever it finds.
+#include <CLI/CLI.hpp>
+#include <meshoptimizer.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "lodforge/eval/attribute_eval.hpp"
+#include "lodforge/eval/eval.hpp"
+#include "lodforge/io/asset.hpp"
+#include "lodforge/simplify/simplify.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using lodforge::Mesh;
+using json = nlohmann::json;
+
+constexpr double kDistanceVsPositionOnly = 1.15;
+constexpr double kThroughputVsPositionOnly = 0.6;
+
+const char* const kAssets[] = {
+    "gltf/Duck.glb",
+    "gltf/CesiumMilkTruck.glb",
+    "gltf/MorphStressTest.gltf",
+    "gltf/armor-knight.gltf",
+    "gltf/Avocado/Avocado.gltf",
+    "gltf/AnisotropyBarnLamp/AnisotropyBarnLamp.gltf",
+    "gltf/FlightHelmet/FlightHelmet.gltf",
+    "skinned/CesiumMan.glb",
+    "skinned/Fox.glb",
+    "skinned/RiggedFigure.glb",
+    "skinned/RiggedSimple.glb",
+};
+
+// The same triangles with positions only: one wedge per vertex.
+Mesh positions_only(const Mesh& m) {
+  Mesh out;
+  out.positions = m.positions;
+  out.wedge_vertex.resize(m.vertex_count());
+  for (std::uint32_t v = 0; v < m.vertex_count(); ++v) out.wedge_vertex[v] = v;
+  for (std::size_t f = 0; f < m.face_count(); ++f) {
+    std::uint32_t w[3];
+    for (int i = 0; i < 3; ++i) w[i] = m.corner_vertex(m.face_offsets[f] + i);
+    out.add_face(w, 3);
+  }
+  out.materials.push_back({});
+  return out;
+}
+
+// All meshes of an asset as one surface (positions and triangles), for the distance.
+Mesh merged(const std::vector<Mesh>& meshes) {
+  Mesh all;
+  all.materials.push_back({});
+  for (const Mesh& m : meshes) {
+    const auto base = static_cast<std::uint32_t>(all.vertex_count());
+    all.positions.insert(all.positions.end(), m.positions.begin(), m.positions.end());
+    for (std::size_t f = 0; f < m.face_count(); ++f) {
+      std::uint32_t w[3];
+      for (int i = 0; i < 3; ++i) {
+        all.wedge_vertex.push_back(base + m.corner_vertex(m.face_offsets[f] + i));
+        w[i] = static_cast<std::uint32_t>(all.wedge_vertex.size() - 1);
+      }
+      all.add_face(w, 3);
+    }
+  }
+  return all;
+}
+
+struct Run {
+  std::string asset, method;
+  double ratio = 0;
+  std::size_t triangles_in = 0, triangles_out = 0;
+  double seconds = 0;  // best of the repetitions, all meshes
+  double mean_rel = 0;
+  std::size_t uv_flips = 0, uv_spanning = 0;
+  std::map<std::string, double> attribute_rms;  // attr only
+  bool has_uv_metrics = false;
+  double throughput() const { return seconds > 0 ? double(triangles_in) / seconds : 0; }
+};
+
+template <typename F>
+double best_seconds(int reps, F&& f) {
+  double best = INFINITY;
+  for (int r = 0; r < reps; ++r) {
+    const auto t0 = std::chrono::steady_clock::now();
+    f();
+    best = std::min(best, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  }
+  return best;
+}
+
+double geomean(const std::vector<double>& v) {
+  double s = 0;
+  std::size_t n = 0;
+  for (double x : v) {
+    if (x > 0 && std::isfinite(x)) s += std::log(x), ++n;
+  }
+  return n ? std::exp(s / double(n)) : 0.0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"lodforge_bench_attributes: attribute-aware simplification on the glTF corpus"};
+  std::string corpus = LODFORGE_BENCH_CORPUS_DIR;
+  std::vector<double> ratios = {0.5, 0.25, 0.1};
+  int reps = 3;
+  std::size_t eval_samples = 100000;
+  std::string json_path;
+  app.add_option("--corpus", corpus, "corpus folder (with gltf/ and skinned/)");
+  app.add_option("--ratios", ratios, "target ratios")->delimiter(',');
+  app.add_option("--reps", reps, "repetitions per timing (best is kept)")->check(CLI::Range(1, 100));
+  app.add_option("--eval-samples", eval_samples, "area samples per direction for the distance");
+  app.add_option("--json", json_path, "also write the runs as JSON");
+  std::vector<double> weights = {1.0, 1.0, 1.0, 1.0};
+  app.add_option("--weights", weights, "attribute weights of attr: normal,uv,color,skin")->delimiter(',')->expected(4);
+  CLI11_PARSE(app, argc, argv);
+
+  std::vector<Run> runs;
+  std::printf("%-20s %5s %-8s %8s %8s %10s %6s %6s %9s %9s %9s %11s\n", "asset", "ratio", "method", "tris in",
+              "tris out", "mean %diag", "flips", "span", "rms nrm", "rms uv0", "rms col0", "tris/s");
+  for (const char* rel : kAssets) {
+    const fs::path path = fs::path(corpus) / rel;
+    if (!fs::exists(path)) {
+      std::printf("%-20s skipped: %s absent\n", fs::path(rel).stem().string().c_str(), path.string().c_str());
+      continue;
+    }
+    const lodforge::io::Asset asset = lodforge::io::load_asset(path);
+    std::vector<Mesh> tris, bare;
+    std::size_t total_in = 0;
+    for (const Mesh& m : asset.meshes) {
+      tris.push_back(lodforge::triangulated(m));
+      bare.push_back(positions_only(tris.back()));
+      total_in += tris.back().triangle_count();
+    }
+    const Mesh reference = merged(tris);
+    const std::string name = fs::path(rel).stem().string();
+    for (double ratio : ratios) {
+      for (const char* method : {"attr", "pos", "meshopt"}) {
+        Run run;
+        run.asset = name;
+        run.method = method;
+        run.ratio = ratio;
+        run.triangles_in = total_in;
+        std::vector<Mesh> out(tris.size());
+        const std::string m = method;
+        run.seconds = best_seconds(reps, [&] {
+          for (std::size_t i = 0; i < tris.size(); ++i) {
+            if (m == "attr") {
+              out[i] = lodforge::simplify(tris[i], {.target_ratio = ratio,
+                                                    .attribute_weights = {.normal = weights[0],
+                                                                          .uv = weights[1],
+                                                                          .color = weights[2],
+                                                                          .skin = weights[3]}})
+                           .mesh;
+            } else if (m == "pos") {
+              out[i] = lodforge::simplify(bare[i], {.target_ratio = ratio}).mesh;
+            } else {
+              const Mesh& b = bare[i];
+              std::vector<std::uint32_t> idx(b.corner_wedge.size()), dst(idx.size());
+              for (std::size_t c = 0; c < idx.size(); ++c) idx[c] = b.corner_vertex(c);
+              const auto target = static_cast<std::size_t>(std::round(ratio * double(idx.size() / 3))) * 3;
+              dst.resize(meshopt_simplify(dst.data(), idx.data(), idx.size(), &b.positions[0][0], b.positions.size(),
+                                          sizeof(lodforge::Vec3f), target, 1.0f, 0, nullptr));
+              Mesh r;
+              r.positions = b.positions;
+              r.wedge_vertex = b.wedge_vertex;
+              r.materials.push_back({});
+              for (std::size_t t = 0; t + 2 < dst.size(); t += 3) r.add_face({dst[t], dst[t + 1], dst[t + 2]});
+              out[i] = std::move(r);
+            }
+          }
+        });
+        for (const Mesh& o : out) run.triangles_out += o.triangle_count();
+        run.mean_rel = lodforge::evaluate(reference, merged(out), {.samples = eval_samples}).mean_rel();
+        if (m == "attr") {
+          run.has_uv_metrics = true;
+          std::map<std::string, std::pair<double, double>> rms;  // sum of squares × samples, samples
+          for (std::size_t i = 0; i < tris.size(); ++i) {
+            const lodforge::AttributeEvalResult e = lodforge::evaluate_attributes(
+                tris[i], out[i], {.samples = std::min<std::size_t>(eval_samples, 50000), .poses = 0});
+            run.uv_flips += e.uv_flipped();
+            run.uv_spanning += e.uv_spanning();
+            for (const auto& a : e.attributes) {
+              rms[a.name].first += a.rms * a.rms * double(e.samples);
+              rms[a.name].second += double(e.samples);
+            }
+          }
+          for (const auto& [k, v] : rms) run.attribute_rms[k] = std::sqrt(v.first / v.second);
+        }
+        auto cell = [&](const char* key) {
+          const auto it = run.attribute_rms.find(key);
+          return it == run.attribute_rms.end() ? std::string("-") : std::to_string(it->second).substr(0, 8);
+        };
+        std::printf("%-20s %5.2f %-8s %8zu %8zu %10.5f %6s %6s %9s %9s %9s %11.0f\n", name.c_str(), ratio, method,
+                    run.triangles_in, run.triangles_out, 100 * run.mean_rel,
+                    run.has_uv_metrics ? std::to_string(run.uv_flips).c_str() : "-",
+                    run.has_uv_metrics ? std::to_string(run.uv_spanning).c_str() : "-", cell("NORMAL").c_str(),
+                    cell("TEXCOORD_0").c_str(), cell("COLOR_0").c_str(), run.throughput());
+        std::fflush(stdout);
+        runs.push_back(std::move(run));
+      }
+    }
+  }
+
+  // Targets.
+  std::size_t flips = 0, spans = 0;
+  std::vector<double> attr_mean, pos_mean;
+  double attr_tris = 0, attr_s = 0, pos_tris = 0, pos_s = 0;
+  for (const Run& r : runs) {
+    if (r.method == "attr") {
+      flips += r.uv_flips;
+      spans += r.uv_spanning;
+      attr_mean.push_back(r.mean_rel);
+      attr_tris += double(r.triangles_in);
+      attr_s += r.seconds;
+    } else if (r.method == "pos") {
+      pos_mean.push_back(r.mean_rel);
+      pos_tris += double(r.triangles_in);
+      pos_s += r.seconds;
+    }
+  }
+  const double distance_ratio = geomean(pos_mean) > 0 ? geomean(attr_mean) / geomean(pos_mean) : 0.0;
+  const double throughput_ratio = (attr_s > 0 && pos_s > 0 && pos_tris > 0) ? (attr_tris / attr_s) / (pos_tris / pos_s) : 0.0;
+  auto verdict = [&](bool met) { return runs.empty() ? "N/A" : met ? "MET" : "NOT MET"; };
+  std::printf("\ntargets (issue 4)\n");
+  std::printf("  zero UV flips and chart merges everywhere: %zu flips, %zu spanning triangles  %s\n", flips, spans,
+              verdict(flips == 0 && spans == 0));
+  std::printf("  geomean mean distance attr / pos = %.3f (<= %.2f)  %s\n", distance_ratio, kDistanceVsPositionOnly,
+              verdict(distance_ratio <= kDistanceVsPositionOnly));
+  std::printf("  throughput attr / pos = %.3f (>= %.2f)  %s\n", throughput_ratio, kThroughputVsPositionOnly,
+              verdict(throughput_ratio >= kThroughputVsPositionOnly));
+
+  if (!json_path.empty()) {
+    json j = json::array();
+    for (const Run& r : runs) {
+      j.push_back({{"asset", r.asset}, {"method", r.method}, {"ratio", r.ratio}, {"triangles_in", r.triangles_in},
+                   {"triangles_out", r.triangles_out}, {"seconds", r.seconds}, {"mean_rel", r.mean_rel},
+                   {"uv_flips", r.uv_flips}, {"uv_spanning", r.uv_spanning}, {"attribute_rms", r.attribute_rms}});
+    }
+    std::ofstream(json_path) << json{{"runs", j},
+                                     {"distance_ratio", distance_ratio},
+                                     {"throughput_ratio", throughput_ratio},
+                                     {"uv_flips", flips},
+                                     {"uv_spanning", spans}}
+                                        .dump(2);
+  }
+  return 0;
+}

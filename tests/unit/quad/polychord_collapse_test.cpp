@@ -1,0 +1,208 @@
+// The polychord engine end to end (quad::simplify_polychord and simplify() with Engine::polychord), quad
+// recovery and quad statistics, on meshes made here.
+#include <gtest/gtest.h>
+
+#include <set>
+
+#include "lodforge/core/topology.hpp"
+#include "lodforge/core/validate.hpp"
+#include "lodforge/eval/eval.hpp"
+#include "lodforge/quad/polychord_collapse.hpp"
+#include "lodforge/quad/quad_recovery.hpp"
+#include "lodforge/quad/quad_stats.hpp"
+#include "lodforge/simplify/simplify.hpp"
+#include "quad_meshes.hpp"
+#include "test_support.hpp"
+
+namespace lodforge::quad {
+namespace {
+
+using testing::make_cylinder;
+using testing::make_quad_grid;
+using testing::make_spiral_strip;
+using testing::make_subdivided_cube;
+using testing::make_torus;
+
+long long euler(const Mesh& m) { return summarize_topology(m, build_topology(m)).euler_characteristic; }
+
+void expect_valid(const Mesh& m) {
+  const ValidationReport r = validate(m);
+  EXPECT_TRUE(r.ok()) << (r.messages.empty() ? std::string() : r.messages.front());
+}
+
+TEST(Polychord, FlatGridLosesWholeChordsWithZeroError) {
+  const Mesh grid = make_quad_grid(6, 6);
+  const PolychordResult r = simplify_polychord(grid, {.target_triangles = 60});
+  EXPECT_TRUE(r.target_reached);
+  EXPECT_EQ(r.triangles_after, 60u);
+  const QuadStats s = quad_stats(r.mesh);
+  EXPECT_EQ(s.quads, 30u);
+  EXPECT_EQ(s.triangles, 0u);
+  expect_valid(r.mesh);
+  const EvalResult e = evaluate(grid, r.mesh);
+  EXPECT_LE(e.hausdorff, 1e-6);
+  EXPECT_EQ(compute_bounds(r.mesh).min, compute_bounds(grid).min);
+  EXPECT_EQ(compute_bounds(r.mesh).max, compute_bounds(grid).max);
+}
+
+TEST(Polychord, CylinderLosesWholeRingsAndStaysAllQuads) {
+  const Mesh cylinder = make_cylinder(16, 8);
+  SimplifyOptions options{.target_ratio = 0.5};
+  options.engine = Engine::polychord;
+  const SimplifyResult r = simplify(cylinder, options);
+  EXPECT_EQ(r.stop_reason, StopReason::target_reached);
+  EXPECT_EQ(r.triangles_after, 128u);
+  EXPECT_EQ(r.quads_before, 128u);
+  EXPECT_EQ(r.quads_after, 64u);
+  EXPECT_EQ(count_face_kinds(r.mesh).triangles, 0u);
+  EXPECT_EQ(quad_stats(r.mesh).irregular_vertices, 0u);
+  expect_valid(r.mesh);
+  EXPECT_EQ(euler(r.mesh), euler(cylinder));
+  // Rings collapse onto the cylinder's own facets: no geometric error.
+  EXPECT_LE(evaluate(cylinder, r.mesh).hausdorff, 1e-5);
+}
+
+TEST(Polychord, TorusStaysQuadDominantValidAndKeepsItsGenus) {
+  const Mesh torus = make_torus(48, 24);
+  for (double ratio : {0.5, 0.25}) {
+    const PolychordResult r = simplify_polychord(torus, {.target_ratio = ratio});
+    EXPECT_TRUE(r.target_reached) << ratio;
+    EXPECT_GE(quad_stats(r.mesh).quad_fraction, 0.85) << ratio;
+    expect_valid(r.mesh);
+    EXPECT_EQ(euler(r.mesh), 0);
+  }
+}
+
+TEST(Polychord, OutputIsDeterministicAndIndependentOfThreads) {
+  const Mesh torus = make_torus(40, 20);
+  SimplifyOptions one{.target_ratio = 0.3, .threads = 1};
+  one.engine = Engine::polychord;
+  SimplifyOptions two = one;
+  two.threads = 2;
+  const SimplifyResult a = simplify(torus, one), b = simplify(torus, two), c = simplify(torus, one);
+  EXPECT_EQ(a.mesh, b.mesh);
+  EXPECT_EQ(a.mesh, c.mesh);
+}
+
+TEST(Polychord, PaintedPriorityProtectsARegion) {
+  Mesh torus = make_torus(48, 16);
+  torus.priority.assign(torus.vertex_count(), 1.0f);
+  for (std::size_t v = 0; v < torus.vertex_count(); ++v) {
+    if (torus.positions[v][0] > 0.0f) torus.priority[v] = 1e6f;
+  }
+  const PolychordResult r = simplify_polychord(torus, {.target_ratio = 0.7});
+  EXPECT_TRUE(r.target_reached);
+  std::set<std::array<float, 3>> input;
+  for (const Vec3f& p : torus.positions) input.insert(p.v);
+  std::size_t protected_kept = 0;
+  for (const Vec3f& p : r.mesh.positions) {
+    if (p[0] > 0.5f) {
+      EXPECT_TRUE(input.count(p.v)) << "a vertex in the painted half moved";
+      ++protected_kept;
+    }
+  }
+  std::size_t protected_input = 0;
+  for (const Vec3f& p : torus.positions) protected_input += p[0] > 0.5f;
+  EXPECT_EQ(protected_kept, protected_input);
+}
+
+TEST(Polychord, LockedVerticesStayPut) {
+  const Mesh torus = make_torus(24, 12);
+  std::vector<std::uint32_t> locked;
+  for (std::uint32_t v = 0; v < torus.vertex_count(); v += 7) locked.push_back(v);
+  const PolychordResult r = simplify_polychord(torus, {.target_ratio = 0.5, .locked_vertices = locked});
+  std::set<std::array<float, 3>> output;
+  for (const Vec3f& p : r.mesh.positions) output.insert(p.v);
+  for (std::uint32_t v : locked) EXPECT_TRUE(output.count(torus.positions[v].v)) << "locked vertex " << v;
+  expect_valid(r.mesh);
+}
+
+TEST(Polychord, SpiralSimplifiesWithoutBreakingTheMesh) {
+  const Mesh spiral = make_spiral_strip(12);
+  const PolychordResult r = simplify_polychord(spiral, {.target_ratio = 0.3});
+  expect_valid(r.mesh);
+  EXPECT_LT(r.triangles_after, r.triangles_before);
+  EXPECT_EQ(euler(r.mesh), euler(spiral));
+}
+
+TEST(Polychord, ContinuesWithTheTriangleEngineWhenQuadsRunOut) {
+  // A 3 x 3 x 3 cube has 9 loops of 12 quads; 10 triangles cannot be reached by polychord collapse alone.
+  const Mesh cube = make_subdivided_cube(3);
+  SimplifyOptions options{.target_triangles = 10, .locked_vertices = {0}};
+  options.engine = Engine::polychord;
+  const SimplifyResult r = simplify(cube, options);
+  EXPECT_LE(r.triangles_after, 10u);
+  expect_valid(r.mesh);
+  EXPECT_EQ(euler(r.mesh), 2);
+  // The lock holds through both engines.
+  bool kept = false;
+  for (const Vec3f& p : r.mesh.positions) kept |= p == cube.positions[0];
+  EXPECT_TRUE(kept);
+}
+
+TEST(Polychord, RejectsBadOptionsAndLocks) {
+  const Mesh grid = make_quad_grid(2, 2);
+  EXPECT_THROW(simplify_polychord(grid, {.target_ratio = 0.0}), std::invalid_argument);
+  EXPECT_THROW(simplify_polychord(grid, {.locked_vertices = {99}}), std::invalid_argument);
+  EXPECT_THROW(simplify_polychord(grid, {.triangle_penalty = -1.0}), std::invalid_argument);
+  EXPECT_THROW(simplify_polychord(grid, {.seed_rungs = 0}), std::invalid_argument);
+}
+
+TEST(Polychord, HandlesEmptyAndBrokenInput) {
+  const PolychordResult empty = simplify_polychord(Mesh{}, {});
+  EXPECT_EQ(empty.triangles_after, 0u);
+  Mesh broken = make_quad_grid(3, 3);
+  broken.corner_wedge[2] = 12345;  // out of range: that face is dropped, nothing crashes
+  const PolychordResult r = simplify_polychord(broken, {.target_ratio = 0.5});
+  expect_valid(r.mesh);
+}
+
+TEST(QuadRecovery, RebuildsQuadsOfATriangulatedGrid) {
+  const Mesh grid = make_quad_grid(6, 5);
+  std::size_t made = 0;
+  const Mesh recovered = recover_quads(triangulated(grid), {}, &made);
+  EXPECT_EQ(made, 30u);
+  const QuadStats s = quad_stats(recovered);
+  EXPECT_EQ(s.quads, 30u);
+  EXPECT_EQ(s.triangles, 0u);
+  EXPECT_EQ(s.irregular_vertices, 0u);
+  expect_valid(recovered);
+}
+
+TEST(QuadRecovery, LeavesSeamsAndSharpFoldsAlone) {
+  // Two triangles folded at 90 degrees along their shared edge: not planar, not paired.
+  Mesh fold;
+  for (auto p : {Vec3f{{0, 0, 0}}, Vec3f{{1, 0, 0}}, Vec3f{{1, 1, 0}}, Vec3f{{0, 0, 1}}}) {
+    testing::add_point(fold, p[0], p[1], p[2]);
+  }
+  fold.add_face({0, 1, 2});
+  fold.add_face({1, 0, 3});
+  std::size_t made = 1;
+  recover_quads(fold, {}, &made);
+  EXPECT_EQ(made, 0u);
+}
+
+TEST(QuadRecovery, FeedsThePolychordEngineOnTriangleInput) {
+  const Mesh tris = triangulated(make_cylinder(16, 8));
+  const PolychordResult r = simplify_polychord(tris, {.target_ratio = 0.5});
+  EXPECT_EQ(r.recovered_quads, 128u);
+  EXPECT_TRUE(r.target_reached);
+  EXPECT_EQ(count_face_kinds(r.mesh).quads, 64u);
+}
+
+TEST(QuadStats, CountsQuadFractionAndIrregularVertices) {
+  const QuadStats grid = quad_stats(make_quad_grid(4, 4));
+  EXPECT_EQ(grid.quad_fraction, 1.0);
+  EXPECT_EQ(grid.interior_vertices, 9u);
+  EXPECT_EQ(grid.irregular_vertices, 0u);
+  const QuadStats cube = quad_stats(make_subdivided_cube(2));
+  EXPECT_EQ(cube.interior_vertices, 26u);
+  EXPECT_EQ(cube.irregular_vertices, 8u);  // the cube corners have valence 3
+  const QuadStats tris = quad_stats(triangulated(make_quad_grid(2, 2)));
+  EXPECT_EQ(tris.quad_fraction, 0.0);
+  EXPECT_EQ(tris.triangles, 8u);
+  EXPECT_EQ(quad_stats(Mesh{}).quad_fraction, 0.0);
+}
+
+}  // namespace
+}  // namespace lodforge::quad
