@@ -56,6 +56,8 @@ constexpr Field kLodFields[] = {{"level", Kind::integer},
                                 {"hausdorff_rel", Kind::number},
                                 {"normal_deviation_mean_deg", Kind::number},
                                 {"attributes", Kind::object},
+                                {"quad_fraction", Kind::number},
+                                {"irregular_vertices", Kind::integer},
                                 {"stop_reason", Kind::string},
                                 {"seconds", Kind::number},
                                 {"screen_coverage", Kind::number_or_null}};

@@ -41,10 +41,12 @@
 #include "lodforge/batch/post_process.hpp"
 #include "lodforge/batch/report.hpp"
 #include "lodforge/core/validate.hpp"
+#include "lodforge/eval/attribute_eval.hpp"
 #include "lodforge/eval/eval.hpp"
 #include "lodforge/io/asset.hpp"
 #include "lodforge/io/file.hpp"
 #include "lodforge/io/lods.hpp"
+#include "lodforge/quad/quad_stats.hpp"
 #include "lodforge/simplify/simplify.hpp"
 
 namespace lodforge::batch {
@@ -61,6 +63,9 @@ constexpr std::size_t kParallelTriangles = 20000;
 // default (which is made for accuracy studies): the report needs the error to a few per cent, and measuring
 // must not cost more than simplifying.
 constexpr std::size_t kEvalSamplesPerTriangle = 1, kEvalSamplesMin = 500, kEvalSamplesMax = 50000;
+// Attribute metrics (attribute_metrics()): area samples per source triangle, clamped, and per synthetic pose.
+constexpr std::size_t kAttributeSamplesPerTriangle = 2, kAttributeSamplesMin = 2000, kAttributeSamplesMax = 50000;
+constexpr std::size_t kAttributePoseSamples = 5000;
 // Screen-coverage hints for LODs whose target is not a screen size: the coverage at which the LOD's measured
 // Hausdorff error is one pixel on a 1080-pixel-tall screen (the projection stated in config.hpp, ScreenSize).
 constexpr double kCoverageScreenPx = 1080.0, kCoverageErrorPx = 1.0;
@@ -368,16 +373,54 @@ Json target_triangles_json(const LodTarget& t, std::size_t source_triangles) {
   return nullptr;
 }
 
-// The LOD record's "attributes" object: what eval measures of the LOD's shading attributes against the source,
-// name -> number. This is the hook for attribute-aware evaluation (eval/attribute_eval.hpp,
-// evaluate_attributes): call it per asset mesh on the source and LOD meshes (not merged_surface, which keeps
-// positions only) with a sample count capped like kEvalSamples*, fold the meshes together (max), add the
-// numbers here (through finite(), so they stay numbers: per-stream RMS, UV stretch ratio and flip/span counts,
-// pose Hausdorff), name them in report.hpp, and bump kAlgorithmVersion so cached records get them. Only what
-// eval really provides goes in; today that is the face-normal deviation of the surface samples.
-Json attribute_metrics(const EvalResult& e) {
-  return {{"normal_deviation_mean_deg", finite(e.normal_deviation_mean_deg)},
-          {"normal_deviation_p95_deg", finite(e.normal_deviation_p95_deg)}};
+// The LOD record's "attributes" object, name -> number: the face-normal deviation of the surface samples
+// (from the position eval), then, from evaluate_attributes per asset mesh (source mesh m against LOD mesh m;
+// meshes folded together: counts summed, errors and ratios their maximum): "rms.<STREAM>" the RMS error of each
+// attribute stream at the closest point ("rms.NORMAL", "rms.TEXCOORD_0", "rms.COLOR_0"), "interpolated_normal_
+// deviation_p95_deg", "uv_flipped" and "uv_spanning" triangle counts over all UV sets, "uv_stretch_ratio" (LOD
+// stretch / source stretch, worst set), and for skinned meshes "pose_hausdorff_rel" (worst synthetic pose).
+// Sample counts are capped (kAttributeSamples*) so that small assets stay cheap.
+Json attribute_metrics(const EvalResult& e, const std::vector<Mesh>& sources, const std::vector<Mesh>& lods,
+                       unsigned jobs) {
+  Json out = {{"normal_deviation_mean_deg", finite(e.normal_deviation_mean_deg)},
+              {"normal_deviation_p95_deg", finite(e.normal_deviation_p95_deg)}};
+  std::map<std::string, double> rms;
+  double normal_p95 = 0, stretch = 0, pose = 0;
+  std::size_t flipped = 0, spanning = 0;
+  bool has_uv = false, has_normals = false, skinned = false;
+  for (std::size_t m = 0; m < sources.size() && m < lods.size(); ++m) {
+    const std::size_t triangles = sources[m].triangle_count();
+    if (triangles == 0 || lods[m].triangle_count() == 0) continue;
+    AttributeEvalOptions options;
+    options.samples = std::clamp(kAttributeSamplesPerTriangle * triangles, kAttributeSamplesMin, kAttributeSamplesMax);
+    options.pose_samples = kAttributePoseSamples;
+    options.threads = threads_for(triangles, jobs);
+    const AttributeEvalResult r = evaluate_attributes(sources[m], lods[m], options);
+    for (const AttributeError& a : r.attributes) rms[a.name] = std::max(rms[a.name], a.rms);
+    if (!sources[m].normals.empty() && !lods[m].normals.empty()) {
+      has_normals = true;
+      normal_p95 = std::max(normal_p95, r.normal_deviation_p95_deg);
+    }
+    for (const UvSetReport& uv : r.uv_sets) {
+      has_uv = true;
+      stretch = std::max(stretch, uv.stretch_ratio);
+      flipped += uv.flipped;
+      spanning += uv.spanning;
+    }
+    if (!r.poses.empty()) {
+      skinned = true;
+      pose = std::max(pose, r.pose_max_hausdorff_rel);
+    }
+  }
+  for (const auto& [name, value] : rms) out["rms." + name] = finite(value);
+  if (has_normals) out["interpolated_normal_deviation_p95_deg"] = finite(normal_p95);
+  if (has_uv) {
+    out["uv_flipped"] = flipped;
+    out["uv_spanning"] = spanning;
+    out["uv_stretch_ratio"] = finite(stretch);
+  }
+  if (skinned) out["pose_hausdorff_rel"] = finite(pose);
+  return out;
 }
 
 // All meshes of an asset as one surface (positions and faces only), for eval: the report measures the asset.
@@ -525,6 +568,7 @@ class Pipeline {
       eval.samples = std::clamp(kEvalSamplesPerTriangle * larger, kEvalSamplesMin, kEvalSamplesMax);
       eval.threads = threads_for(larger, jobs_);
       const EvalResult e = evaluate(source, lod, eval);
+      const quad::QuadStats quads = quad::quad_stats(lod);
 
       // Where this LOD switches in (share of screen height): the config's own screen size, else where its
       // measured error is one pixel; never above the previous LOD's, so the chain is a valid MSFT_lod series.
@@ -548,7 +592,9 @@ class Pipeline {
                       {"rms_rel", finite(e.rms_rel())},
                       {"hausdorff_rel", finite(e.hausdorff_rel())},
                       {"normal_deviation_mean_deg", finite(e.normal_deviation_mean_deg)},
-                      {"attributes", attribute_metrics(e)},
+                      {"attributes", attribute_metrics(e, job.sources, job.levels[k], jobs_)},
+                      {"quad_fraction", finite(quads.quad_fraction)},
+                      {"irregular_vertices", quads.irregular_vertices},
                       {"stop_reason", stop},
                       {"seconds", seconds},
                       {"screen_coverage", coverage}});

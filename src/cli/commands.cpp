@@ -175,6 +175,7 @@ void register_simplify(CLI::App& app) {
     std::string in, out, engine = "edge_collapse", border = "preserve";
     SimplifyOptions opt;
     double max_error_rel = -1;
+    bool keep_attributes = false;
     bool evaluate = false;
   };
   auto a = std::make_shared<Args>();
@@ -189,9 +190,33 @@ void register_simplify(CLI::App& app) {
   cmd->add_option("--border", a->border, "free | preserve | lock")->default_val("preserve");
   cmd->add_option("--threads", a->opt.threads, "worker threads (0 = all cores)")->default_val(0);
   cmd->add_option("--seed", a->opt.seed, "random seed (multiple_choice)")->default_val(1);
+  cmd->add_option("--normal-weight", a->opt.attribute_weights.normal, "weight of normal error (0 = ignore)")
+      ->default_val(a->opt.attribute_weights.normal);
+  cmd->add_option("--uv-weight", a->opt.attribute_weights.uv, "weight of UV error, scaled by UV density (0 = ignore)")
+      ->default_val(a->opt.attribute_weights.uv);
+  cmd->add_option("--color-weight", a->opt.attribute_weights.color, "weight of vertex colour error (0 = ignore)")
+      ->default_val(a->opt.attribute_weights.color);
+  cmd->add_option("--skin-weight", a->opt.attribute_weights.skin, "weight of skin weight error (0 = ignore)")
+      ->default_val(a->opt.attribute_weights.skin);
+  cmd->add_flag("--keep-attributes", a->keep_attributes,
+                "moved vertices keep the surviving wedges' attributes (LODs can share one vertex buffer)");
+  cmd->add_flag("--permissive", a->opt.permissive,
+                "very low LODs: hard-edge normal seams may merge (UV seams and materials still hold)");
+  cmd->add_option("--priority-channel", a->opt.priority_channel,
+                  "painted priority: _LOD_PRIORITY, a custom attribute (_PAINT, _PAINT.y), COLOR_0.r, or none")
+      ->default_val(a->opt.priority_channel);
+  cmd->add_option("--priority-lock", a->opt.priority_lock, "painted priority at or above which a vertex is locked")
+      ->default_val(a->opt.priority_lock);
+  cmd->add_option("--skin-threshold", a->opt.skin_weight_threshold,
+                  "influences below this weight are ignored when comparing bones")
+      ->default_val(a->opt.skin_weight_threshold);
+  cmd->add_option("--skin-max-distance", a->opt.skin_max_distance,
+                  "vertices of different dominant bones merge only below this L1 weight distance")
+      ->default_val(a->opt.skin_max_distance);
   cmd->add_flag("--eval", a->evaluate, "measure the result against the input (Hausdorff, mean, RMS)");
   cmd->callback([a] {
     SimplifyOptions opt = a->opt;
+    if (a->keep_attributes) opt.attribute_placement = AttributePlacement::keep;
     opt.max_error_rel = a->max_error_rel;
     if (a->engine == "edge_collapse") opt.engine = Engine::edge_collapse;
     else if (a->engine == "multiple_choice") opt.engine = Engine::multiple_choice;

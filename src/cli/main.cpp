@@ -21,7 +21,8 @@
 int main(int argc, char** argv) {
   CLI::App app{
       "lodforge - regenerates level-of-detail chains of game assets.\n"
-      "Exit codes: 0 success, 1 some inputs failed, 2 usage error or bad input (nothing written), 3 internal error."};
+      "Exit codes: 0 success, 1 some inputs failed, 2 usage error or bad input (nothing written), 3 internal error,\n"
+      "130 `run` interrupted (Ctrl-C or SIGTERM: finished assets kept, report written; a re-run resumes)."};
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("lodforge ") + lodforge::cli::version());
 

@@ -28,29 +28,10 @@ namespace fs = std::filesystem;
 using Json = nlohmann::json;
 namespace testlib = lodforge::batch::testlib;
 
-struct CliResult {
-  int code = -1;
-  std::string output;  // stdout and stderr together
-};
+using CliResult = lodforge::testing::CommandResult;
+using lodforge::testing::run_cli;
 
-CliResult run_cli(const std::string& args) {
-  const std::string cmd = std::string(LODFORGE_CLI) + " " + args + " 2>&1";
-  CliResult r;
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return r;
-  std::array<char, 4096> buf{};
-  while (std::fgets(buf.data(), buf.size(), p)) r.output += buf.data();
-  const int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
-
-std::string q(const fs::path& p) {
-  std::string s(1, '\'');
-  s += p.string();
-  s += '\'';
-  return s;
-}
+std::string q(const fs::path& p) { return lodforge::testing::shell_quote(p); }
 
 std::string run_args(const fs::path& config, const fs::path& lib, const fs::path& out, const std::string& more = "") {
   return "run --config " + q(config) + " --input " + q(lib) + " --output " + q(out) + " " + more;
@@ -120,7 +101,7 @@ TEST(BatchCli, HelpListsTheBatchCommands) {
 TEST(BatchCli, ValidateConfigPrintsTheEffectiveConfigOrEveryError) {
   const fs::path dir = lodforge::testing::temp_dir("batch_cli_validate");
   const CliResult ok = run_cli("validate-config " + q(fs::path(LODFORGE_SOURCE_DIR) / "configs/default.json"));
-  EXPECT_EQ(ok.code, 0) << ok.output;
+  EXPECT_EQ(ok.exit_code, 0) << ok.output;
   const Json effective = Json::parse(ok.output);
   EXPECT_EQ(effective["classes"].size(), 4u);
   EXPECT_TRUE(effective["defaults"].contains("engine")) << "defaults applied";
@@ -128,10 +109,10 @@ TEST(BatchCli, ValidateConfigPrintsTheEffectiveConfigOrEveryError) {
   std::ofstream(dir / "bad.json") << R"({"version": 1, "classes": [{"name": "a", "match": ["**"],
       "lods": [{"ratio": 0.5}, {"ratio": 0.7}], "colour": 1}]})";
   const CliResult bad = run_cli("validate-config " + q(dir / "bad.json"));
-  EXPECT_EQ(bad.code, 2);
+  EXPECT_EQ(bad.exit_code, 2);
   EXPECT_NE(bad.output.find("classes[0].lods[1].ratio"), std::string::npos) << bad.output;
   EXPECT_NE(bad.output.find("colour"), std::string::npos) << bad.output;
-  EXPECT_EQ(run_cli("validate-config " + q(dir / "missing.json")).code, 2);
+  EXPECT_EQ(run_cli("validate-config " + q(dir / "missing.json")).exit_code, 2);
 }
 
 TEST(BatchCli, RunWritesLodsAReportAndOneLogLinePerAsset) {
@@ -139,7 +120,7 @@ TEST(BatchCli, RunWritesLodsAReportAndOneLogLinePerAsset) {
   const testlib::Library lib = testlib::write_library(dir / "lib", 30);
   const fs::path config = testlib::write_config(dir);
   const CliResult r = run_cli(run_args(config, lib.root, dir / "out", "--jobs 2"));
-  ASSERT_EQ(r.code, 0) << r.output;
+  ASSERT_EQ(r.exit_code, 0) << r.output;
   const std::string n = std::to_string(lib.files.size());
   EXPECT_NE(r.output.find("[1/" + n + "] "), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("[" + n + "/" + n + "] "), std::string::npos) << r.output;
@@ -157,7 +138,7 @@ TEST(BatchCli, RunWritesLodsAReportAndOneLogLinePerAsset) {
   EXPECT_TRUE(fs::exists(dir / "out/chars/hero_21.gltf") && fs::exists(dir / "out/chars/hero_21.bin"));
 
   const CliResult again = run_cli(run_args(config, lib.root, dir / "out", "--jobs 2"));
-  EXPECT_EQ(again.code, 0);
+  EXPECT_EQ(again.exit_code, 0);
   EXPECT_NE(again.output.find("(" + n + " cache hits)"), std::string::npos) << again.output;
   EXPECT_NE(again.output.find("(cached)"), std::string::npos) << again.output;
 }
@@ -189,7 +170,7 @@ CliResult run_cli_on_terminal(const std::vector<std::string>& args) {
   ::close(master);
   int status = 0;
   waitpid(pid, &status, 0);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return r;
 }
 
@@ -198,7 +179,7 @@ TEST(BatchCli, ProgressIsOneLiveLineOnATerminal) {
   const testlib::Library lib = testlib::write_library(dir / "lib", 30);
   const CliResult r = run_cli_on_terminal({"run", "--config", testlib::write_config(dir).string(), "--input",
                                            lib.root.string(), "--output", (dir / "out").string(), "--jobs", "2"});
-  ASSERT_EQ(r.code, 0) << r.output;
+  ASSERT_EQ(r.exit_code, 0) << r.output;
   const std::string n = std::to_string(lib.files.size());
   // The line is redrawn in place (carriage return, erase to the end of the line), at least for the last asset,
   // with the counts, the rate and the time left; it is erased before the summary.
@@ -214,7 +195,7 @@ TEST(BatchCli, FailedAssetsExitOneAndAreListed) {
   const testlib::Library lib = testlib::write_library(dir / "lib", 12);
   std::ofstream(lib.root / "props/broken.stl") << "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0\n";
   const CliResult r = run_cli(run_args(testlib::write_config(dir), lib.root, dir / "out"));
-  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("1 asset(s) failed:\n  props/broken.stl: "), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("props/broken.stl: FAILED: "), std::string::npos) << r.output;
   EXPECT_TRUE(fs::exists(dir / "out/props/prop_0_LOD1.obj")) << "the others completed";
@@ -236,7 +217,7 @@ TEST(BatchCli, UsageAndConfigErrorsExitTwoAndWriteNothing) {
   };
   for (const std::string& args : cases) {
     const CliResult r = run_cli(args);
-    EXPECT_EQ(r.code, 2) << args << "\n" << r.output;
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
     EXPECT_FALSE(r.output.empty()) << args << ": says why";
   }
   EXPECT_FALSE(fs::exists(dir / "out"));
@@ -246,7 +227,7 @@ TEST(BatchCli, KilledRunResumesToIdenticalOutputWithoutPartialFiles) {
   const fs::path dir = lodforge::testing::temp_dir("batch_cli_kill");
   const testlib::Library lib = testlib::write_library(dir / "lib", 200);
   const fs::path config = testlib::write_config(dir);
-  ASSERT_EQ(run_cli(run_args(config, lib.root, dir / "clean", "--jobs 2")).code, 0);
+  ASSERT_EQ(run_cli(run_args(config, lib.root, dir / "clean", "--jobs 2")).exit_code, 0);
   const auto clean = testlib::read_outputs(dir / "clean");
 
   const pid_t pid = spawn_cli({"run", "--config", config.string(), "--input", lib.root.string(), "--output",
@@ -270,7 +251,7 @@ TEST(BatchCli, KilledRunResumesToIdenticalOutputWithoutPartialFiles) {
   EXPECT_FALSE(fs::exists(dir / "out/report.json")) << "a killed run writes no report";
 
   const CliResult resumed = run_cli(run_args(config, lib.root, dir / "out", "--jobs 2"));
-  EXPECT_EQ(resumed.code, 0) << resumed.output;
+  EXPECT_EQ(resumed.exit_code, 0) << resumed.output;
   const Json report = Json::parse(lodforge::io::read_file(dir / "out/report.json"));
   EXPECT_GE(report["summary"]["cache_hits"].get<std::size_t>(), finished) << "finished assets are not redone";
   EXPECT_TRUE(testlib::read_outputs(dir / "out") == clean);
@@ -296,27 +277,27 @@ TEST(BatchCli, CtrlCFinishesAssetsInFlightWritesTheReportAndExits130) {
   EXPECT_GT(report["summary"]["skipped"].get<std::size_t>(), 0u);
   EXPECT_EQ(report["summary"]["succeeded"].get<std::size_t>(), cache_entries(dir / "out"));
   EXPECT_TRUE(testlib::leftovers(dir / "out").empty());
-  EXPECT_EQ(run_cli(run_args(config, lib.root, dir / "out")).code, 0);
+  EXPECT_EQ(run_cli(run_args(config, lib.root, dir / "out")).exit_code, 0);
 }
 
 TEST(BatchCli, ThreeShardsMergeToTheUnshardedReport) {
   const fs::path dir = lodforge::testing::temp_dir("batch_cli_shards");
   const testlib::Library lib = testlib::write_library(dir / "lib", 60);
   const fs::path config = testlib::write_config(dir);
-  ASSERT_EQ(run_cli(run_args(config, lib.root, dir / "whole")).code, 0);
+  ASSERT_EQ(run_cli(run_args(config, lib.root, dir / "whole")).exit_code, 0);
   std::string merge = "merge-reports " + q(dir / "merged/report.json");
   fs::create_directories(dir / "merged");
   for (int k = 0; k < 3; ++k) {
     const fs::path out = dir / ("shard" + std::to_string(k));
     const CliResult r = run_cli(run_args(config, lib.root, out, "--shard " + std::to_string(k) + "/3"));
-    ASSERT_EQ(r.code, 0) << r.output;
+    ASSERT_EQ(r.exit_code, 0) << r.output;
     const fs::path report = out / ("report.shard-" + std::to_string(k) + "-of-3.json");
     ASSERT_TRUE(fs::exists(report));
     EXPECT_FALSE(fs::exists(out / "report.json"));
     merge += " " + q(report);
   }
   const CliResult m = run_cli(merge);
-  ASSERT_EQ(m.code, 0) << m.output;
+  ASSERT_EQ(m.exit_code, 0) << m.output;
   EXPECT_NE(m.output.find("merged 3 reports: " + std::to_string(lib.files.size()) + " assets"), std::string::npos)
       << m.output;
   EXPECT_TRUE(fs::exists(dir / "merged/report.html"));
@@ -326,7 +307,7 @@ TEST(BatchCli, ThreeShardsMergeToTheUnshardedReport) {
   // Merging a shard twice is refused.
   EXPECT_EQ(run_cli("merge-reports " + q(dir / "x.json") + " " + q(dir / "shard0/report.shard-0-of-3.json") + " " +
                     q(dir / "shard0/report.shard-0-of-3.json"))
-                .code,
+                .exit_code,
             2);
 }
 
@@ -335,7 +316,7 @@ TEST(BatchCli, BenchPrintsThroughputScalingAndStages) {
   const testlib::Library lib = testlib::write_library(dir / "lib", 10);
   const CliResult r =
       run_cli("bench --config " + q(testlib::write_config(dir)) + " --input " + q(lib.root) + " --max-jobs 2");
-  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(r.exit_code, 0) << r.output;
   for (const char* s : {"assets/s", "input tri/s", "efficiency", "per-stage time", "measure"}) {
     EXPECT_NE(r.output.find(s), std::string::npos) << s << "\n" << r.output;
   }
@@ -344,10 +325,10 @@ TEST(BatchCli, BenchPrintsThroughputScalingAndStages) {
 
 TEST(BatchCli, DemoLibraryRunsWithTheDefaultConfig) {
   const fs::path dir = lodforge::testing::temp_dir("batch_cli_demo");
-  ASSERT_EQ(run_cli("demo " + q(dir / "lib")).code, 0);
+  ASSERT_EQ(run_cli("demo " + q(dir / "lib")).exit_code, 0);
   const CliResult r =
       run_cli(run_args(fs::path(LODFORGE_SOURCE_DIR) / "configs/default.json", dir / "lib", dir / "out"));
-  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("5 assets: 5 ok"), std::string::npos) << r.output;
   EXPECT_TRUE(fs::exists(dir / "out/characters/torus_ring.gltf"));
 }

@@ -1,7 +1,6 @@
 // End-to-end tests of the `lodforge` command: exit codes, messages, and that bad input writes nothing.
 #include <gtest/gtest.h>
 
-#include <array>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -13,22 +12,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct CliRun {
-  int code = -1;
-  std::string output;  // stdout and stderr together
-};
-
-CliRun run_cli(const std::string& args) {
-  const std::string cmd = std::string(LODFORGE_CLI) + " " + args + " 2>&1";
-  CliRun r;
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return r;
-  std::array<char, 4096> buf{};
-  while (std::fgets(buf.data(), buf.size(), p)) r.output += buf.data();
-  const int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+using lodforge::testing::run_cli;
+using CliRun = lodforge::testing::CommandResult;
 
 void write_text(const fs::path& p, const std::string& s) {
   std::ofstream(p, std::ios::binary) << s;
@@ -43,17 +28,17 @@ bool no_temporaries(const fs::path& dir) {
 
 TEST(Cli, HelpListsSubcommandsAndExitCodes) {
   const CliRun r = run_cli("--help");
-  EXPECT_EQ(r.code, 0);
+  EXPECT_EQ(r.exit_code, 0);
   for (const char* s : {"info", "convert", "simplify", "eval", "demo", "Exit codes"}) {
     EXPECT_NE(r.output.find(s), std::string::npos) << s;
   }
 }
 
-TEST(Cli, UnknownSubcommandIsUsageError) { EXPECT_EQ(run_cli("frobnicate").code, 2); }
+TEST(Cli, UnknownSubcommandIsUsageError) { EXPECT_EQ(run_cli("frobnicate").exit_code, 2); }
 
 TEST(Cli, InfoOnMissingFileNamesItAndExitsTwo) {
   const CliRun r = run_cli("info /nonexistent/dir/thing.obj");
-  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.output.find("/nonexistent/dir/thing.obj: no such file"), std::string::npos) << r.output;
 }
 
@@ -61,7 +46,7 @@ TEST(Cli, ConvertOfBadInputWritesNothing) {
   const fs::path dir = lodforge::testing::temp_dir("cli_bad_convert");
   write_text(dir / "broken.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n");
   const CliRun r = run_cli("convert " + (dir / "broken.obj").string() + " " + (dir / "out.ply").string());
-  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.output.find("broken.obj"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(dir / "out.ply"));
   EXPECT_TRUE(no_temporaries(dir));
@@ -73,7 +58,7 @@ TEST(Cli, ConvertEmptyAndWrongMagicGlbExitTwo) {
   write_text(dir / "magic.glb", std::string("glTX\x02\0\0\0\x20\0\0\0", 12) + std::string(20, '\0'));
   for (const char* name : {"empty.glb", "magic.glb"}) {
     const CliRun r = run_cli("convert " + (dir / name).string() + " " + (dir / "out.glb").string());
-    EXPECT_EQ(r.code, 2) << name << ": " << r.output;
+    EXPECT_EQ(r.exit_code, 2) << name << ": " << r.output;
     EXPECT_NE(r.output.find(name), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(dir / "out.glb"));
   }
@@ -82,9 +67,9 @@ TEST(Cli, ConvertEmptyAndWrongMagicGlbExitTwo) {
 
 TEST(Cli, DemoLibraryLoadsCleanlyWithInfo) {
   const fs::path dir = lodforge::testing::temp_dir("cli_demo");
-  ASSERT_EQ(run_cli("demo " + dir.string()).code, 0);
+  ASSERT_EQ(run_cli("demo " + dir.string()).exit_code, 0);
   const CliRun r = run_cli("info " + dir.string());
-  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("summary: 5 asset(s) loaded, 0 failed"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("validation: 1"), std::string::npos) << "a sample asset has validation findings:\n"
                                                                    << r.output;
@@ -93,7 +78,7 @@ TEST(Cli, DemoLibraryLoadsCleanlyWithInfo) {
 TEST(Cli, DemoOutputMatchesTheBundledSampleLibrary) {
   // samples/library is the committed output of `lodforge demo`; they must not drift apart.
   const fs::path dir = lodforge::testing::temp_dir("cli_demo_match");
-  ASSERT_EQ(run_cli("demo " + dir.string()).code, 0);
+  ASSERT_EQ(run_cli("demo " + dir.string()).exit_code, 0);
   const fs::path lib = fs::path(LODFORGE_SOURCE_DIR) / "samples/library";
   std::size_t compared = 0;
   for (const auto& e : fs::recursive_directory_iterator(dir)) {
@@ -110,22 +95,22 @@ TEST(Cli, DemoOutputMatchesTheBundledSampleLibrary) {
 
 TEST(Cli, SimplifyAndEvalOnDemoAsset) {
   const fs::path dir = lodforge::testing::temp_dir("cli_simplify");
-  ASSERT_EQ(run_cli("demo " + dir.string()).code, 0);
+  ASSERT_EQ(run_cli("demo " + dir.string()).exit_code, 0);
   const fs::path in = dir / "environment/rock.ply", out = dir / "rock_lod1.ply";
   const CliRun s = run_cli("simplify " + in.string() + " " + out.string() + " --ratio 0.25");
-  ASSERT_EQ(s.code, 0) << s.output;
+  ASSERT_EQ(s.exit_code, 0) << s.output;
   ASSERT_TRUE(fs::exists(out));
   const CliRun e = run_cli("eval " + in.string() + " " + out.string() + " --json");
-  ASSERT_EQ(e.code, 0) << e.output;
+  ASSERT_EQ(e.exit_code, 0) << e.output;
   EXPECT_NE(e.output.find("\"hausdorff_rel\""), std::string::npos);
 }
 
 TEST(Cli, SimplifyRejectsInvalidOptions) {
   const fs::path dir = lodforge::testing::temp_dir("cli_simplify_bad");
-  ASSERT_EQ(run_cli("demo " + dir.string()).code, 0);
+  ASSERT_EQ(run_cli("demo " + dir.string()).exit_code, 0);
   const CliRun r = run_cli("simplify " + (dir / "environment/rock.ply").string() + " " + (dir / "x.ply").string() +
                         " --ratio 1.5");
-  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.exit_code, 2);
   EXPECT_FALSE(fs::exists(dir / "x.ply"));
 }
 

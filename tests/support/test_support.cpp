@@ -1,6 +1,10 @@
 #include "test_support.hpp"
 
+#include <sys/wait.h>
+
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <numbers>
 #include <system_error>
 
@@ -17,6 +21,56 @@ std::filesystem::path temp_dir(const std::string& name) {
   std::filesystem::remove_all(p);
   std::filesystem::create_directories(p);
   return p;
+}
+
+CommandResult run_command(const std::string& command) {
+  CommandResult r;
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+  if (!pipe) return r;
+  char buf[4096];
+  std::size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) r.output.append(buf, n);
+  const int status = pclose(pipe);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+std::string shell_quote(const std::filesystem::path& p) {
+  std::string s = "'";
+  for (const char c : p.string()) {
+    if (c == '\'') {
+      s += "'\\''";
+    } else {
+      s += c;
+    }
+  }
+  return s + "'";
+}
+
+CommandResult run_cli(const std::string& args) { return run_command(std::string(LODFORGE_CLI) + " " + args); }
+
+namespace {
+std::filesystem::path gltf_validator_module() {
+  if (const char* env = std::getenv("LODFORGE_GLTF_VALIDATOR")) return env;
+  return std::filesystem::path(LODFORGE_SOURCE_DIR) / "tools" / "node" / "node_modules" / "gltf-validator";
+}
+}  // namespace
+
+std::string gltf_validator_unavailable() {
+  if (std::system("node --version > /dev/null 2>&1") != 0) return "node is not installed";
+  std::error_code ec;
+  if (!std::filesystem::exists(gltf_validator_module() / "package.json", ec)) {
+    return "gltf-validator not found at " + gltf_validator_module().string() + " (scripts/test.sh installs it)";
+  }
+  return {};
+}
+
+CommandResult validate_gltf(const std::vector<std::filesystem::path>& files, const std::filesystem::path& baseline) {
+  std::string cmd = "node " + shell_quote(std::filesystem::path(LODFORGE_SOURCE_DIR) / "tests" / "support" /
+                                          "validate_gltf.mjs");
+  if (!baseline.empty()) cmd += " --baseline " + shell_quote(baseline);
+  for (const std::filesystem::path& f : files) cmd += " " + shell_quote(f);
+  return run_command(cmd);
 }
 
 namespace {

@@ -3,6 +3,7 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "lodforge/core/mesh.hpp"
 
@@ -16,6 +17,31 @@ std::filesystem::path corpus_path(const std::string& relative);
 
 // A fresh empty folder under the build tree, removed by the caller's scope if wanted.
 std::filesystem::path temp_dir(const std::string& name);
+
+// ---- external commands ----
+
+struct CommandResult {
+  int exit_code = -1;   // -1 when the command could not be started or did not exit normally
+  std::string output;   // stdout and stderr together
+};
+// Runs `command` through /bin/sh, capturing stdout and stderr.
+CommandResult run_command(const std::string& command);
+// `p` quoted for /bin/sh (single quotes, embedded quotes escaped).
+std::string shell_quote(const std::filesystem::path& p);
+// Runs the `lodforge` command built with the tests, with `args` (already quoted where needed).
+CommandResult run_cli(const std::string& args);
+
+// ---- the Khronos glTF validator (tests/support/validate_gltf.mjs; scripts/test.sh installs the npm module) ----
+
+// Empty when the validator can run, else why not (node absent, module not installed).
+std::string gltf_validator_unavailable();
+#define LODFORGE_REQUIRE_GLTF_VALIDATOR()                                                        \
+  if (const std::string why_ = ::lodforge::testing::gltf_validator_unavailable(); !why_.empty()) \
+  GTEST_SKIP() << why_
+// Validates `files`; exit code 0 when none has an error. With `baseline` (the source asset), errors the
+// source itself already has are reported as inherited and do not count.
+CommandResult validate_gltf(const std::vector<std::filesystem::path>& files,
+                            const std::filesystem::path& baseline = {});
 
 // Hand-made meshes (one wedge per vertex, material 0).
 Mesh make_tetrahedron();

@@ -7,16 +7,17 @@
 //                "cache_hit": bool, "seconds": float, "input": {"triangles", "vertices": int, "diagonal": float},
 //                "outputs": [str], "lods": [{"level", "from", "target": {"kind", "value"}, "target_triangles",
 //                "triangles", "vertices", "ratio", "error_bound_abs", "error_bound_rel", "mean_rel", "rms_rel",
-//                "hausdorff_rel", "normal_deviation_mean_deg", "attributes": {name: float}, "stop_reason",
-//                "seconds", "screen_coverage"}]}]}
+//                "hausdorff_rel", "normal_deviation_mean_deg", "attributes": {name: float}, "quad_fraction",
+//                "irregular_vertices", "stop_reason", "seconds", "screen_coverage"}]}]}
 //
 // Per LOD: "target" is what the config asked ({"kind": "ratio" | "triangles" | "max_error" | "screen_size",
 // "value"}), "target_triangles" its triangle count for this asset (null for error targets), "triangles" and
 // "vertices" what was achieved; "error_bound_*" the simplifier's bound on the error against the source
 // (accumulated along the chain), "mean_rel", "rms_rel" and "hausdorff_rel" the error measured by eval (relative
-// to the source's bounding-box diagonal); "attributes" the attribute metrics eval provides (today the
-// face-normal deviation mean and 95th percentile, in degrees; runner.cpp attribute_metrics() is where new ones
-// go); "screen_coverage" the LOD's MSFT_screencoverage entry (README, "Screen coverage").
+// to the source's bounding-box diagonal); "attributes" the attribute metrics eval provides (face-normal
+// deviation, per-stream attribute RMS, UV flips, chart spans and stretch, skinned pose error: runner.cpp
+// attribute_metrics() lists them); "quad_fraction" and "irregular_vertices" the LOD's quad structure (quads /
+// faces, interior vertices of valence != 4: quad::quad_stats); "screen_coverage" the LOD's MSFT_screencoverage entry (README, "Screen coverage").
 //
 // Assets are sorted by path. "seconds" (summary, asset, LOD) are the only fields that differ between two runs
 // of the same library, config and cache state, whatever --jobs; the report render (report_html.hpp) and

@@ -38,7 +38,7 @@ namespace lodforge::batch {
 
 // Part of every cache key: bump it whenever a change to lodforge makes the same input and config give
 // different output bytes (simplifier, post-process, writers), so stale LODs are rebuilt.
-inline constexpr const char* kAlgorithmVersion = "lodforge-0.1.0/batch-2";  // 2: LOD "attributes"
+inline constexpr const char* kAlgorithmVersion = "lodforge-0.1.0/batch-3";  // 2: LOD "attributes", 3: attribute eval, quads
 inline constexpr const char* kLodforgeVersion = "0.1.0";
 
 // Estimated peak memory of one asset in flight. Measured with `lodforge run`: the whole chain (loaded Mesh,

@@ -212,12 +212,12 @@ TEST(BatchCorpus, ExampleConfigsOverTheCorpusLibrary) {
     EXPECT_TRUE(testlib::leftovers(out).empty());
   }
 
-  if (const std::string why = testlib::validator_unavailable(); !why.empty()) GTEST_SKIP() << why;
+  if (const std::string why = testlib::gltf_validator_unavailable(); !why.empty()) GTEST_SKIP() << why;
   ASSERT_FALSE(gltf_outputs.empty());
   // No new errors: two corpus scenes list a child node as a root and the Avocado copy lacks its textures; the
   // outputs carry both unchanged, so errors their source already has do not count.
   for (const auto& [path, files] : gltf_outputs) {
-    const testlib::Validation v = testlib::validate_gltf(files, lib / path);
+    const auto v = testlib::validate_gltf(files, lib / path);
     EXPECT_EQ(v.exit_code, 0) << path << "\n" << v.output;
   }
 }

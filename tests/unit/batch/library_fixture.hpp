@@ -161,43 +161,10 @@ inline std::vector<std::string> leftovers(const fs::path& dir) {
   return out;
 }
 
-// ---- the Khronos glTF validator (skips when node or the module is absent) ----
+// ---- the Khronos glTF validator (test_support.hpp; skips when node or the module is absent) ----
 
-inline fs::path validator_module() {
-  if (const char* env = std::getenv("LODFORGE_GLTF_VALIDATOR")) return env;
-  return fs::path(LODFORGE_SOURCE_DIR) / "tools" / "node" / "node_modules" / "gltf-validator";
-}
-
-inline std::string validator_unavailable() {
-  if (std::system("node --version > /dev/null 2>&1") != 0) return "node is not installed";
-  std::error_code ec;
-  if (!fs::exists(validator_module() / "package.json", ec)) {
-    return "gltf-validator not found at " + validator_module().string() + " (scripts/setup.sh installs it)";
-  }
-  return {};
-}
-
-struct Validation {
-  int exit_code = -1;
-  std::string output;
-};
-
-// `baseline`: errors the source file already has are not counted (validate_gltf.mjs --baseline).
-inline Validation validate_gltf(const std::vector<fs::path>& files, const fs::path& baseline = {}) {
-  std::string cmd = "node '" + (fs::path(LODFORGE_SOURCE_DIR) / "tests/support/validate_gltf.mjs").string() + "'";
-  if (!baseline.empty()) cmd += " --baseline '" + baseline.string() + "'";
-  for (const fs::path& f : files) cmd += " '" + f.string() + "'";
-  cmd += " 2>&1";
-  Validation v;
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (!pipe) return v;
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) v.output.append(buf, n);
-  const int status = pclose(pipe);
-  v.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return v;
-}
+using ::lodforge::testing::gltf_validator_unavailable;
+using ::lodforge::testing::validate_gltf;
 
 // The JSON of a .gltf, or of a .glb's JSON chunk.
 inline nlohmann::json gltf_json(const fs::path& file) {

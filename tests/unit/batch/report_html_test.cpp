@@ -33,6 +33,8 @@ json lod(int level, double ratio, double mean_rel, double hausdorff_rel) {
           {"hausdorff_rel", hausdorff_rel},
           {"normal_deviation_mean_deg", 3.25 * level},
           {"attributes", {{"normal_deviation_mean_deg", 3.25 * level}}},
+          {"quad_fraction", 0.0},
+          {"irregular_vertices", 4},
           {"stop_reason", "target_reached"},
           {"seconds", 0.012 * level},
           {"screen_coverage", nullptr}};

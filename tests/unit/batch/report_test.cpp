@@ -25,6 +25,8 @@ Json lod(int level) {
           {"hausdorff_rel", 0.002},
           {"normal_deviation_mean_deg", 1.5},
           {"attributes", {{"normal_deviation_mean_deg", 1.5}, {"normal_deviation_p95_deg", 4.0}}},
+          {"quad_fraction", 0.0},
+          {"irregular_vertices", 12},
           {"stop_reason", "target_reached"},
           {"seconds", 0.01},
           {"screen_coverage", 0.4}};

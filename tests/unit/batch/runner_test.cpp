@@ -372,9 +372,44 @@ TEST(BatchRunner, MsftLodOutputsPassTheValidator) {
     EXPECT_EQ(with_lods, meshes);
   }
   ASSERT_GT(files.size(), 50u);
-  if (const std::string why = testlib::validator_unavailable(); !why.empty()) GTEST_SKIP() << why;
-  const testlib::Validation v = testlib::validate_gltf(files);
+  if (const std::string why = testlib::gltf_validator_unavailable(); !why.empty()) GTEST_SKIP() << why;
+  const auto v = testlib::validate_gltf(files);
   EXPECT_EQ(v.exit_code, 0) << v.output;
+}
+
+// A textured quad grid through a polychord LOD and a triangle LOD: each LOD record carries the attribute
+// metrics of attribute_eval (UV error, flips, chart spans, stretch) and the quad structure of the LOD.
+TEST(BatchRunner, ReportsAttributeMetricsAndQuadStructurePerLod) {
+  const fs::path dir = testing::temp_dir("batch_runner_attributes");
+  Mesh grid = testing::make_grid(12, 12, true);
+  grid.uvs.assign(1, {});
+  for (const std::uint32_t v : grid.wedge_vertex) {
+    grid.uvs[0].push_back(Vec2f{{grid.positions[v][0] / 12.0f, grid.positions[v][1] / 12.0f}});
+  }
+  grid.normals.assign(grid.wedge_vertex.size(), Vec3f{{0, 0, 1}});
+  fs::create_directories(dir / "lib");
+  io::save_asset(testlib::asset_of({grid}, io::Format::obj), dir / "lib/grid.obj");
+  const BatchConfig cfg = parse_config(Json::parse(R"({
+    "version": 1,
+    "classes": [{"name": "all", "match": ["**"], "lods": [
+      {"ratio": 0.5, "engine": "polychord"},
+      {"ratio": 0.25}]}]})"), "test config");
+  const RunResult r = run(dir / "lib", dir / "out", 2, cfg);
+  ASSERT_EQ(r.succeeded, 1u) << (r.failures.empty() ? std::string() : r.failures.front());
+  const Json& lods = record_of(r.report, "grid.obj")["lods"];
+  ASSERT_EQ(lods.size(), 2u);
+  for (const Json& l : lods) {
+    const Json& attrs = l["attributes"];
+    ASSERT_TRUE(attrs.contains("rms.TEXCOORD_0")) << attrs.dump();
+    EXPECT_LT(attrs["rms.TEXCOORD_0"].get<double>(), 0.05);  // a flat grid with planar UVs stays planar
+    EXPECT_EQ(attrs["uv_flipped"], 0);
+    EXPECT_EQ(attrs["uv_spanning"], 0);
+    EXPECT_GT(attrs["uv_stretch_ratio"].get<double>(), 0.0);
+    EXPECT_TRUE(attrs.contains("rms.NORMAL"));
+    EXPECT_FALSE(attrs.contains("pose_hausdorff_rel"));  // not skinned
+  }
+  EXPECT_GT(lods[0]["quad_fraction"].get<double>(), 0.85);  // polychord keeps quads
+  EXPECT_EQ(lods[1]["quad_fraction"].get<double>(), 0.0);   // the triangle engine's LOD is triangles
 }
 
 TEST(BatchRunner, MissingInputFolderThrows) {

@@ -21,57 +21,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path validator_module() {
-  if (const char* env = std::getenv("LODFORGE_GLTF_VALIDATOR")) return env;
-  return fs::path(LODFORGE_SOURCE_DIR) / "tools" / "node" / "node_modules" / "gltf-validator";
-}
-
-// Empty when the validator can run, else why not.
-std::string validator_unavailable() {
-  if (std::system("node --version > /dev/null 2>&1") != 0) return "node is not installed";
-  std::error_code ec;
-  if (!fs::exists(validator_module() / "package.json", ec)) {
-    return "gltf-validator not found at " + validator_module().string() + " (scripts/test.sh installs it)";
-  }
-  return {};
-}
-
-#define LODFORGE_REQUIRE_VALIDATOR() \
-  if (const std::string why = validator_unavailable(); !why.empty()) GTEST_SKIP() << why
-
-std::string quote(const fs::path& p) {
-  std::string s = "'";
-  for (const char c : p.string()) s += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return s + "'";
-}
-
-struct Result {
-  int exit_code = -1;
-  std::string output;
-};
-
-Result validate(const std::vector<fs::path>& files, const fs::path& baseline = {}) {
-  std::string cmd = "node ";
-  cmd += quote(fs::path(LODFORGE_SOURCE_DIR) / "tests" / "support" / "validate_gltf.mjs");
-  if (!baseline.empty()) {
-    cmd += " --baseline ";
-    cmd += quote(baseline);
-  }
-  for (const fs::path& f : files) {
-    cmd += ' ';
-    cmd += quote(f);
-  }
-  cmd += " 2>&1";
-  Result r;
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (!pipe) return r;
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) r.output.append(buf, n);
-  const int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+using ::lodforge::testing::validate_gltf;
+#define LODFORGE_REQUIRE_VALIDATOR() LODFORGE_REQUIRE_GLTF_VALIDATOR()
 
 const char* const kCorpus[] = {
     "gltf/Duck.glb",
@@ -107,7 +58,7 @@ TEST_P(GltfValidator, RoundTripHasNoNewErrors) {
   const Asset a = load_asset(src);
   save_asset(a, dir / "out.glb");
   save_asset(a, dir / "out.gltf");
-  const Result r = validate({dir / "out.glb", dir / "out.gltf"}, src);
+  const auto r = validate_gltf({dir / "out.glb", dir / "out.gltf"}, src);
   EXPECT_EQ(r.exit_code, 0) << r.output;
   // The per-file summary lines ("N errors, N inherited errors, N warnings ...") for the test log.
   for (std::size_t at = 0; at < r.output.size();) {
@@ -136,7 +87,7 @@ TEST(GltfValidatorWrite, DocumentBuiltWithoutSourcePasses) {
   const fs::path dir = testing::temp_dir("gltf_validate_built");
   save_asset(a, dir / "b.gltf");
   save_asset(a, dir / "b.glb");
-  const Result r = validate({dir / "b.gltf", dir / "b.glb"});
+  const auto r = validate_gltf({dir / "b.gltf", dir / "b.glb"});
   EXPECT_EQ(r.exit_code, 0) << r.output;
 }
 
@@ -160,7 +111,7 @@ TEST(GltfValidatorWrite, EditedMeshesPass) {
     }
     const fs::path dir = testing::temp_dir("gltf_validate_edited_" + fs::path(file).stem().string());
     save_asset(a, dir / "e.glb");
-    const Result r = validate({dir / "e.glb"}, src);
+    const auto r = validate_gltf({dir / "e.glb"}, src);
     EXPECT_EQ(r.exit_code, 0) << r.output;
   }
 }
@@ -188,7 +139,7 @@ TEST(GltfValidatorWrite, DroppedAndAddedPrimitivesPass) {
   const fs::path dir = testing::temp_dir("gltf_validate_slots");
   save_asset(a, dir / "s.glb");
   save_asset(a, dir / "s.gltf");
-  const Result r = validate({dir / "s.glb", dir / "s.gltf"}, src);
+  const auto r = validate_gltf({dir / "s.glb", dir / "s.gltf"}, src);
   EXPECT_EQ(r.exit_code, 0) << r.output;
 }
 
@@ -344,7 +295,7 @@ TEST(GltfValidatorWrite, HandMadeDocumentsPass) {
     const fs::path gltf = dir / "out" / (src.stem().string() + ".gltf");
     save_asset(a, glb);
     save_asset(a, gltf);
-    const Result r = validate({glb, gltf}, src);
+    const auto r = validate_gltf({glb, gltf}, src);
     EXPECT_EQ(r.exit_code, 0) << r.output;
   }
 }

@@ -23,38 +23,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Empty when the Khronos validator can run, else why not (as tests/unit/io/gltf_validator_test.cpp).
-std::string validator_unavailable() {
-  if (std::system("node --version > /dev/null 2>&1") != 0) return "node is not installed";
-  const char* env = std::getenv("LODFORGE_GLTF_VALIDATOR");
-  const fs::path module = env ? fs::path(env) : fs::path(LODFORGE_SOURCE_DIR) / "tools/node/node_modules/gltf-validator";
-  std::error_code ec;
-  if (!fs::exists(module / "package.json", ec)) return "gltf-validator not found at " + module.string();
-  return {};
-}
-
-std::string quote(const fs::path& p) {
-  std::string s = "'";
-  for (const char c : p.string()) s += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return s + "'";
-}
-
-// Exit code and output of tests/support/validate_gltf.mjs (errors the source already has do not count).
-std::pair<int, std::string> validate_files(const std::vector<fs::path>& files, const fs::path& baseline) {
-  std::string cmd = "node " + quote(fs::path(LODFORGE_SOURCE_DIR) / "tests/support/validate_gltf.mjs");
-  cmd += " --baseline " + quote(baseline);
-  for (const fs::path& f : files) cmd += " " + quote(f);
-  cmd += " 2>&1";
-  std::string out;
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (!pipe) return {-1, "popen failed"};
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) out.append(buf, n);
-  const int status = pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
-}
-
 const char* const kAssets[] = {
     "gltf/Duck.glb",
     "gltf/CesiumMilkTruck.glb",
@@ -127,11 +95,11 @@ TEST_P(AttributeCorpus, SimplifiesWithoutChartMergesOrFlips) {
     written.push_back(dir / ("lod_" + std::to_string(static_cast<int>(ratio * 100)) + ".glb"));
     io::save_asset(lod, written.back());
   }
-  if (const std::string why = validator_unavailable(); !why.empty()) {
+  if (const std::string why = testing::gltf_validator_unavailable(); !why.empty()) {
     GTEST_SKIP() << "simplified; validator skipped: " << why;
   }
-  const auto [code, output] = validate_files(written, src);
-  EXPECT_EQ(code, 0) << output;
+  const testing::CommandResult r = testing::validate_gltf(written, src);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
 }
 
 INSTANTIATE_TEST_SUITE_P(Gltf, AttributeCorpus, ::testing::ValuesIn(kAssets), case_name);
