@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <numbers>
 #include <numeric>
@@ -130,40 +131,6 @@ std::array<double, 4> interpolate(const Triangles& t, const Stream& s, std::uint
 }
 
 // ---- UV charts of the original and the lookup of a UV point in them ----
-
-// Chart id per wedge (see the header).
-std::vector<std::uint32_t> wedge_charts(const Mesh& m) {
-  const std::size_t nw = m.wedge_count();
-  std::vector<std::uint32_t> parent(nw);
-  std::iota(parent.begin(), parent.end(), 0u);
-  auto find = [&](std::uint32_t x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-  };
-  auto unite = [&](std::uint32_t a, std::uint32_t b) {
-    a = find(a);
-    b = find(b);
-    if (a != b) parent[std::max(a, b)] = std::min(a, b);
-  };
-  for (std::size_t f = 0; f < m.face_count(); ++f) {
-    const std::uint32_t w0 = m.corner_wedge[m.face_offsets[f]];
-    for (std::uint32_t c = m.face_offsets[f] + 1; c < m.face_offsets[f + 1]; ++c) {
-      if (w0 < nw && m.corner_wedge[c] < nw) unite(w0, m.corner_wedge[c]);
-    }
-  }
-  std::map<std::pair<std::uint32_t, std::vector<float>>, std::uint32_t> same;
-  for (std::uint32_t w = 0; w < nw; ++w) {
-    std::vector<float> key;
-    for (const auto& set : m.uvs) {
-      if (set.size() == nw) key.insert(key.end(), {set[w][0], set[w][1]});
-    }
-    auto [it, fresh] = same.emplace(std::make_pair(m.wedge_vertex[w], std::move(key)), w);
-    if (!fresh) unite(it->second, w);
-  }
-  std::vector<std::uint32_t> id(nw);
-  for (std::uint32_t w = 0; w < nw; ++w) id[w] = find(w);
-  return id;
-}
 
 double uv_area2(const Vec2f& a, const Vec2f& b, const Vec2f& c) {
   return (double{b[0]} - a[0]) * (double{c[1]} - a[1]) - (double{c[0]} - a[0]) * (double{b[1]} - a[1]);
@@ -400,7 +367,7 @@ AttributeEvalResult evaluate_attributes(const Mesh& original_in, const Mesh& sim
   }
 
   // UV stretch, flips and chart spans, per set both meshes have.
-  const std::vector<std::uint32_t> chart = wedge_charts(original);
+  const std::vector<std::uint32_t> chart = uv_charts(original);
   for (std::size_t set = 0; set < std::min(original.uvs.size(), simplified.uvs.size()); ++set) {
     const std::vector<Vec2f>& ua = original.uvs[set];
     const std::vector<Vec2f>& ub = simplified.uvs[set];
@@ -523,6 +490,44 @@ AttributeEvalResult evaluate_attributes(const Mesh& original_in, const Mesh& sim
     }
   }
   return result;
+}
+
+std::vector<std::uint32_t> uv_charts(const Mesh& m) {
+  const std::size_t nw = m.wedge_count();
+  std::vector<std::uint32_t> parent(nw);
+  std::iota(parent.begin(), parent.end(), 0u);
+  auto find = [&](std::uint32_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  auto unite = [&](std::uint32_t a, std::uint32_t b) {
+    a = find(a);
+    b = find(b);
+    if (a != b) parent[std::max(a, b)] = std::min(a, b);
+  };
+  for (std::size_t f = 0; f < m.face_count(); ++f) {
+    const std::uint32_t w0 = m.corner_wedge[m.face_offsets[f]];
+    for (std::uint32_t c = m.face_offsets[f] + 1; c < m.face_offsets[f + 1]; ++c) {
+      if (w0 < nw && m.corner_wedge[c] < nw) unite(w0, m.corner_wedge[c]);
+    }
+  }
+  std::map<std::pair<std::uint32_t, std::vector<float>>, std::uint32_t> same;
+  for (std::uint32_t w = 0; w < nw; ++w) {
+    std::vector<float> key;
+    for (const auto& set : m.uvs) {
+      if (set.size() == nw) key.insert(key.end(), {set[w][0], set[w][1]});
+    }
+    auto [it, fresh] = same.emplace(std::make_pair(m.wedge_vertex[w], std::move(key)), w);
+    if (!fresh) unite(it->second, w);
+  }
+  std::vector<std::uint32_t> id(nw), dense(nw, std::numeric_limits<std::uint32_t>::max());
+  std::uint32_t next = 0;
+  for (std::uint32_t w = 0; w < nw; ++w) {
+    const std::uint32_t root = find(w);
+    if (dense[root] == std::numeric_limits<std::uint32_t>::max()) dense[root] = next++;
+    id[w] = dense[root];
+  }
+  return id;
 }
 
 }  // namespace lodforge

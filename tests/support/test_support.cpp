@@ -2,6 +2,7 @@
 
 #include <sys/wait.h>
 
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -14,6 +15,14 @@ std::filesystem::path corpus_path(const std::string& relative) {
   std::filesystem::path p = std::filesystem::path(LODFORGE_CORPUS_DIR) / relative;
   std::error_code ec;
   return std::filesystem::exists(p, ec) ? p : std::filesystem::path{};
+}
+
+std::string test_name_of(const std::string& path) {
+  std::string name = std::filesystem::path(path).stem().string();
+  for (char& c : name) {
+    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+  }
+  return name;
 }
 
 std::filesystem::path temp_dir(const std::string& name) {

@@ -15,6 +15,9 @@ std::filesystem::path corpus_path(const std::string& relative);
   const auto var = ::lodforge::testing::corpus_path(rel);                            \
   if (var.empty()) GTEST_SKIP() << "corpus file " << (rel) << " absent (../shared/corpus)"
 
+// A GoogleTest parameter name for a corpus file: its stem with every non-alphanumeric character as '_'.
+std::string test_name_of(const std::string& path);
+
 // A fresh empty folder under the build tree, removed by the caller's scope if wanted.
 std::filesystem::path temp_dir(const std::string& name);
 

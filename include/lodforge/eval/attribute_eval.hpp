@@ -74,6 +74,10 @@ struct AttributeEvalResult {
   std::size_t uv_spanning() const;
 };
 
+// UV chart id of every wedge of `m`, dense in order of first wedge: the wedges of one face, and the wedges of
+// one vertex with equal UVs in every set, share a chart (the chart definition the metrics above use).
+std::vector<std::uint32_t> uv_charts(const Mesh& m);
+
 // Both meshes are triangulated internally. Attribute streams present in only one mesh are skipped.
 AttributeEvalResult evaluate_attributes(const Mesh& original, const Mesh& simplified,
                                         const AttributeEvalOptions& options = {});

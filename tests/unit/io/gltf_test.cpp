@@ -340,11 +340,7 @@ const CorpusCase kCorpus[] = {
 class GltfCorpus : public ::testing::TestWithParam<CorpusCase> {};
 
 std::string case_name(const ::testing::TestParamInfo<CorpusCase>& info) {
-  std::string s = fs::path(info.param.file).stem().string();
-  for (char& c : s) {
-    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
-  }
-  return s;
+  return ::lodforge::testing::test_name_of(info.param.file);
 }
 
 TEST_P(GltfCorpus, LoadsWithManifestCounts) {

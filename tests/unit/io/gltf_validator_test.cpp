@@ -44,11 +44,7 @@ const char* const kCorpus[] = {
 class GltfValidator : public ::testing::TestWithParam<const char*> {};
 
 std::string case_name(const ::testing::TestParamInfo<const char*>& info) {
-  std::string s = fs::path(info.param).stem().string();
-  for (char& c : s) {
-    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
-  }
-  return s;
+  return ::lodforge::testing::test_name_of(info.param);
 }
 
 TEST_P(GltfValidator, RoundTripHasNoNewErrors) {

@@ -263,13 +263,7 @@ INSTANTIATE_TEST_SUITE_P(
                       "quad/sword-quad-dominant.obj", "quad/penguin_control_mesh.obj", "quad/mixedFaring_polygons.obj",
                       "quad/hexaSphere_polygons.obj", "hardsurface/wingnut.obj", "topology/plane_holes.obj",
                       "topology/blub_open.obj", "topology/hand_lowres_open.obj", "terrain/mountain-remeshed.obj"),
-    [](const ::testing::TestParamInfo<const char*>& info) {
-      std::string name = std::filesystem::path(info.param).stem().string();
-      for (char& c : name) {
-        if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
-      }
-      return name;
-    });
+    [](const ::testing::TestParamInfo<const char*>& info) { return ::lodforge::testing::test_name_of(info.param); });
 
 TEST(ObjCorpusDetails, SuzanneKeepsItsMaterialObjectAndMtllib) {
   LODFORGE_REQUIRE_CORPUS(file, "quad/suzanne.obj");

@@ -40,11 +40,7 @@ const char* const kAssets[] = {
 class AttributeCorpus : public ::testing::TestWithParam<const char*> {};
 
 std::string case_name(const ::testing::TestParamInfo<const char*>& info) {
-  std::string s = fs::path(info.param).stem().string();
-  for (char& c : s) {
-    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
-  }
-  return s;
+  return testing::test_name_of(info.param);
 }
 
 void expect_skin_intact(const Mesh& in, const Mesh& out) {

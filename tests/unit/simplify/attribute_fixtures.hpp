@@ -6,54 +6,19 @@
 #include <cmath>
 #include <cstdint>
 #include <map>
-#include <numeric>
 #include <tuple>
 #include <vector>
 
 #include "lodforge/core/mesh.hpp"
+#include "lodforge/eval/attribute_eval.hpp"
 
 namespace lodforge::attribute_test {
 
 inline constexpr const char* kChartAttribute = "_CHART";
 
-// Union-find over wedges: the wedges of one face, and wedges of one vertex with equal UVs (all sets), are in
-// one chart. Returns the chart id of every wedge (ids dense, in order of first wedge).
-inline std::vector<std::uint32_t> uv_charts(const Mesh& m) {
-  const std::size_t nw = m.wedge_count();
-  std::vector<std::uint32_t> parent(nw);
-  std::iota(parent.begin(), parent.end(), 0u);
-  auto find = [&](std::uint32_t x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-  };
-  auto unite = [&](std::uint32_t a, std::uint32_t b) {
-    a = find(a);
-    b = find(b);
-    if (a != b) parent[std::max(a, b)] = std::min(a, b);
-  };
-  for (std::size_t f = 0; f < m.face_count(); ++f) {
-    for (std::uint32_t c = m.face_offsets[f] + 1; c < m.face_offsets[f + 1]; ++c) {
-      unite(m.corner_wedge[m.face_offsets[f]], m.corner_wedge[c]);
-    }
-  }
-  std::map<std::tuple<std::uint32_t, std::vector<float>>, std::uint32_t> by_uv;
-  for (std::uint32_t w = 0; w < nw; ++w) {
-    std::vector<float> key;
-    for (const auto& set : m.uvs) {
-      if (set.size() == nw) key.insert(key.end(), {set[w][0], set[w][1]});
-    }
-    auto [it, fresh] = by_uv.emplace(std::make_tuple(m.wedge_vertex[w], key), w);
-    if (!fresh) unite(it->second, w);
-  }
-  std::vector<std::uint32_t> id(nw), dense(nw, 0xffffffffu);
-  std::uint32_t next = 0;
-  for (std::uint32_t w = 0; w < nw; ++w) {
-    const std::uint32_t r = find(w);
-    if (dense[r] == 0xffffffffu) dense[r] = next++;
-    id[w] = dense[r];
-  }
-  return id;
-}
+// UV chart id of every wedge (eval's definition: the wedges of one face, and the wedges of one vertex with equal
+// UVs in every set, share a chart); ids dense in order of first wedge.
+using ::lodforge::uv_charts;
 
 // Adds the custom attribute _CHART (the wedge's chart id), which the simplifier carries unchanged: after
 // simplification it names the input chart of every surviving wedge.
