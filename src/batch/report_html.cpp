@@ -242,6 +242,8 @@ struct Lod {
   std::optional<double> rms_rel;
   std::optional<double> hausdorff_rel;
   std::optional<double> normal_deviation_mean_deg;
+  std::optional<double> uv_problems;    // UV-flipped plus chart-spanning triangles (attributes), absent without UVs
+  std::optional<double> quad_fraction;  // quads / faces of the LOD
   std::optional<std::string> stop_reason;
   std::optional<double> seconds;
 };
@@ -274,6 +276,10 @@ Lod read_lod(const json& j) {
   lod.rms_rel = number(j, "rms_rel");
   lod.hausdorff_rel = number(j, "hausdorff_rel");
   lod.normal_deviation_mean_deg = number(j, "normal_deviation_mean_deg");
+  const json& attributes = member(j, "attributes");
+  const std::optional<double> flipped = number(attributes, "uv_flipped"), spanning = number(attributes, "uv_spanning");
+  if (flipped && spanning) lod.uv_problems = *flipped + *spanning;
+  lod.quad_fraction = number(j, "quad_fraction");
   lod.stop_reason = text(j, "stop_reason");
   lod.seconds = number(j, "seconds");
   return lod;
@@ -608,6 +614,8 @@ void render_lod_table(std::string& out, const std::vector<Row>& rows) {
   header_cell(out, "RMS %", true);
   header_cell(out, "Hausdorff %", true);
   header_cell(out, "normal dev \xC2\xB0", true);
+  header_cell(out, "UV flips+spans", true);
+  header_cell(out, "quad fraction", true);
   header_cell(out, "stop reason", false);
   header_cell(out, "time s", true);
   out += "</tr></thead><tbody>\n";
@@ -638,6 +646,8 @@ void render_lod_table(std::string& out, const std::vector<Row>& rows) {
     number_cell(out, l.rms_rel, as_percent);
     number_cell(out, l.hausdorff_rel, as_percent);
     number_cell(out, l.normal_deviation_mean_deg, as_degrees);
+    number_cell(out, l.uv_problems, as_count);
+    number_cell(out, l.quad_fraction, as_ratio);
     text_cell(out, l.stop_reason);
     number_cell(out, rows[i].lod ? l.seconds : a.seconds, as_seconds);  // no LODs: the asset's own time
     out += "</tr>\n";

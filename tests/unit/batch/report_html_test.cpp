@@ -32,8 +32,8 @@ json lod(int level, double ratio, double mean_rel, double hausdorff_rel) {
           {"rms_rel", mean_rel * 1.3},
           {"hausdorff_rel", hausdorff_rel},
           {"normal_deviation_mean_deg", 3.25 * level},
-          {"attributes", {{"normal_deviation_mean_deg", 3.25 * level}}},
-          {"quad_fraction", 0.0},
+          {"attributes", {{"normal_deviation_mean_deg", 3.25 * level}, {"uv_flipped", level}, {"uv_spanning", 1}}},
+          {"quad_fraction", 0.25 * level},
           {"irregular_vertices", 4},
           {"stop_reason", "target_reached"},
           {"seconds", 0.012 * level},
@@ -144,7 +144,7 @@ std::vector<std::vector<Cell>> table_rows(std::string_view html, std::string_vie
 
 // Column indices of the asset x LOD table.
 constexpr std::size_t kRank = 0, kPath = 1, kStatus = 3, kLevel = 5, kTarget = 6, kTriangles = 8, kMean = 11,
-                      kHausdorff = 13, kStop = 15;
+                      kHausdorff = 13, kUvProblems = 15, kQuadFraction = 16, kStop = 17;
 
 TEST(ReportHtml, IsOneHtml5Page) {
   const std::string html = render_report_html(sample_report());
@@ -219,7 +219,7 @@ TEST(ReportHtml, TableHasOneRowPerAssetLod) {
   const std::string html = render_report_html(sample_report());
   const auto rows = table_rows(html, "lods");
   EXPECT_EQ(rows.size(), 15U + 2U);  // 15 LODs, plus one row each for the failed and the skipped asset
-  for (const auto& row : rows) ASSERT_EQ(row.size(), 17U);
+  for (const auto& row : rows) ASSERT_EQ(row.size(), 19U);
   std::size_t chair_rows = 0;
   for (const auto& row : rows) chair_rows += row[kPath].text == "props/chair.obj";
   EXPECT_EQ(chair_rows, 3U);
@@ -253,14 +253,16 @@ TEST(ReportHtml, TableShowsTargetsAndPercentages) {
   EXPECT_EQ(worst[kTarget].text, "ratio 0.1");
   EXPECT_EQ(worst[kTriangles].text, "100");
   EXPECT_EQ(worst[kMean].text, "0.7000");
+  EXPECT_EQ(worst[kUvProblems].text, "4");      // uv_flipped 3 + uv_spanning 1
+  EXPECT_EQ(worst[kQuadFraction].text, "0.7500");
   EXPECT_EQ(worst[kStop].text, "target_reached");
 }
 
 TEST(ReportHtml, EveryHeaderSortsAndShowsADirection) {
   const std::string html = render_report_html(sample_report());
   const std::string_view head = between(between(html, "<table id=\"lods\"", "</table>"), "<thead>", "</thead>");
-  EXPECT_EQ(count_of(head, "<th "), 17U);
-  EXPECT_EQ(count_of(head, "data-type=\"num\"") + count_of(head, "data-type=\"text\""), 17U);
+  EXPECT_EQ(count_of(head, "<th "), 19U);
+  EXPECT_EQ(count_of(head, "data-type=\"num\"") + count_of(head, "data-type=\"text\""), 19U);
   EXPECT_EQ(count_of(head, "aria-sort=\"ascending\""), 1U);  // the worst-first rank
   EXPECT_NE(html.find("th[aria-sort=\"descending\"]::after"), std::string::npos);
   EXPECT_NE(html.find("addEventListener(\"click\""), std::string::npos);
