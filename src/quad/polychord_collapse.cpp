@@ -16,6 +16,7 @@
 #include <string>
 
 #include "lodforge/metric/quadric.hpp"
+#include "lodforge/metric/skin.hpp"
 #include "lodforge/quad/polychord.hpp"
 #include "lodforge/quad/quad_mesh.hpp"
 #include "lodforge/quad/quad_recovery.hpp"
@@ -89,6 +90,11 @@ class Engine {
   Engine(const Mesh& mesh, const PolychordOptions& options, std::size_t target)
       : mesh_(mesh), options_(options), target_(target), qm_(mesh) {
     for (std::uint32_t v : options.locked_vertices) qm_.lock(v);
+    if (mesh.priority.size() == mesh.vertex_count()) {
+      for (std::uint32_t v = 0; v < mesh.vertex_count(); ++v) {
+        if (mesh.priority[v] >= options.priority_lock) qm_.lock(v);
+      }
+    }
     if (options.lock_boundary) {
       for (std::uint32_t f = 0; f < qm_.face_slots(); ++f) {
         for (std::uint32_t i = 0; i < qm_.face_size(f); ++i) {
@@ -114,6 +120,7 @@ class Engine {
  private:
   void setup_quadrics();
   double rung_cost(const std::array<std::uint32_t, 2>& r) const;
+  bool skin_allows(const std::vector<std::vector<std::uint32_t>>& islands) const;
   std::optional<Candidate> best_candidate(const Chord& chord, long long cap) const;
   // How many more triangles runs may leave behind (the triangle budget minus the triangles there are).
   long long triangles_left_allowed() const {
@@ -173,16 +180,34 @@ void Engine::setup_quadrics() {
       quadric_[b] += border;
     }
   }
-  // Painted priority scales a vertex's whole quadric: its collapses cost more (or less) in proportion.
+  // Painted priority scales a vertex's whole quadric by its square (as the triangle engine does): a weight acts
+  // on distances, so a region painted 10 keeps about a tenth of the error.
   if (mesh_.priority.size() == nv) {
     for (std::size_t v = 0; v < nv; ++v) {
       const double p = mesh_.priority[v];
-      if (std::isfinite(p) && p >= 0.0) quadric_[v] *= p;
+      if (std::isfinite(p) && p >= 0.0) quadric_[v] *= p * p;
     }
   }
   const double mean_area = faces > 0 ? area / static_cast<double>(faces) : 0.0;
   const double mean_edge_sq = edges > 0 ? edge_sq / static_cast<double>(edges) : 0.0;
   penalty_ = options_.triangle_penalty * mean_area * mean_edge_sq;
+}
+
+// Whether every island joins only vertices that may merge by their skin weights (every pair: an island's
+// vertices end as one, whichever survives).
+bool Engine::skin_allows(const std::vector<std::vector<std::uint32_t>>& islands) const {
+  if (mesh_.skin.size() != mesh_.vertex_count()) return true;
+  for (const std::vector<std::uint32_t>& island : islands) {
+    for (std::size_t i = 0; i < island.size(); ++i) {
+      for (std::size_t j = i + 1; j < island.size(); ++j) {
+        if (!skin_mergeable(mesh_.skin[island[i]], mesh_.skin[island[j]], options_.skin_weight_threshold,
+                            options_.skin_max_distance)) {
+          return false;
+        }
+      }
+    }
+  }
+  return true;
 }
 
 // Cost of merging rung (a, b) at its best point; +inf when both ends are locked (neither may move).
@@ -489,7 +514,8 @@ PolychordResult Engine::run() {
     const Candidate candidate = chord.best;
     const IslandPlan islands = plan(chord, candidate);
     if (budget >= 0.0 && islands.max_error > budget) continue;  // stays out until its neighbourhood changes
-    const WeldResult w = qm_.weld(islands.islands, islands.positions, weld_options_);
+    const WeldResult w = skin_allows(islands.islands) ? qm_.weld(islands.islands, islands.positions, weld_options_)
+                                                      : WeldResult{.failure = WeldFailure::skin};
     if (!w.ok()) {
       ++rejected_;
       ++chord.version;

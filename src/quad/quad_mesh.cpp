@@ -23,6 +23,7 @@ const char* weld_failure_name(WeldFailure f) {
     case WeldFailure::flipped: return "flipped";
     case WeldFailure::degenerate: return "degenerate";
     case WeldFailure::euler: return "euler";
+    case WeldFailure::skin: return "skin";
   }
   return "unknown";
 }

@@ -80,7 +80,10 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options) {
              .border_weight = options.border_mode == BorderMode::free ? 0.0 : options.border_weight,
              .max_flip_angle_deg = options.max_flip_angle_deg,
              .lock_boundary = options.border_mode == BorderMode::lock,
-             .locked_vertices = options.locked_vertices});
+             .locked_vertices = options.locked_vertices,
+             .priority_lock = options.priority_lock,
+             .skin_weight_threshold = options.skin_weight_threshold,
+             .skin_max_distance = options.skin_max_distance});
   const double quad_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   SimplifyResult r;
   if (q.triangles_after > target) {

@@ -14,7 +14,8 @@
 // What the output keeps: quads stay quads unless a run ends in them; faces keep their input order, material
 // and group; a vertex that never moved keeps its exact input position. Wedges: an island keeps the wedges of
 // its survivor (the vertex with the most wedges), one per side of a seam; islands that would merge two wedges
-// of one vertex are refused (QuadMesh::weld). Skin, priority and morph deltas are the survivor's.
+// of one vertex are refused (QuadMesh::weld). Skin, priority and morph deltas are the survivor's; islands
+// joining vertices of different dominant joints outside a blend band are refused (metric/skin.hpp).
 // Not done here: the "guide plane" re-simplification pass after polychord removal (EA's US patent
 // 10,043,310); lodforge::simplify() continues with the triangle engine when this one stops early.
 #pragma once
@@ -51,6 +52,13 @@ struct PolychordOptions {
   // Pair triangles into quads first (quad_recovery.hpp) when the input has no quads at all.
   bool recover_quads = true;
   std::vector<std::uint32_t> locked_vertices{};
+  // Painted priority (Mesh::priority) at or above this locks the vertex; below, it scales the vertex's
+  // quadric by its square, as in the triangle engine.
+  double priority_lock = 1000.0;
+  // Skinned meshes: an island may only join vertices that skin_mergeable() allows (metric/skin.hpp) with
+  // these parameters, every pair of its vertices.
+  double skin_weight_threshold = 0.1;
+  double skin_max_distance = 0.5;
 };
 
 struct PolychordResult {

@@ -35,6 +35,7 @@ enum class WeldFailure : std::uint8_t {
   flipped,           // a face normal would turn by more than the allowed angle, or a corner would turn concave
   degenerate,        // a face would get (almost) zero area
   euler,             // the Euler characteristic would change (a handle or a component closed off)
+  skin,              // an island joins vertices bound to different joints (checked by the engine, not weld())
 };
 const char* weld_failure_name(WeldFailure f);
 

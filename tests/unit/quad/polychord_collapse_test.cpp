@@ -2,6 +2,7 @@
 // recovery and quad statistics, on meshes made here.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <set>
 
 #include "lodforge/core/topology.hpp"
@@ -104,6 +105,58 @@ TEST(Polychord, PaintedPriorityProtectsARegion) {
   std::size_t protected_input = 0;
   for (const Vec3f& p : torus.positions) protected_input += p[0] > 0.5f;
   EXPECT_EQ(protected_kept, protected_input);
+}
+
+// A short quad cylinder (vertex rings at z = 0, 1, 2) whose rings alternate between two bones. Collapsing a ring
+// loop is free on a straight cylinder but merges vertices of different bones, so the skin rule refuses it and
+// the engine can only merge columns (same ring, same bone): all three rings remain. With the rule off (max
+// distance above any L1 distance) a ring goes: the scenario can tell.
+TEST(Polychord, IslandsKeepBonesApart) {
+  Mesh cyl = make_cylinder(16, 2);
+  for (const Vec3f& p : cyl.positions) {
+    SkinInfluences s;
+    s.joints = {0, 1};
+    const bool middle = p[2] > 0.5f && p[2] < 1.5f;
+    s.weights = middle ? std::array<float, kMaxInfluences>{0.0f, 1.0f} : std::array<float, kMaxInfluences>{1.0f, 0.0f};
+    cyl.skin.push_back(s);
+  }
+  auto rings = [](const Mesh& m) {
+    std::set<float> z;
+    for (const Vec3f& p : m.positions) z.insert(p[2]);
+    return z.size();
+  };
+  PolychordOptions options{.target_ratio = 0.5};
+  const PolychordResult r = simplify_polychord(cyl, options);
+  ASSERT_EQ(r.mesh.skin.size(), r.mesh.vertex_count());
+  EXPECT_EQ(rings(r.mesh), 3u);
+  for (std::size_t v = 0; v < r.mesh.vertex_count(); ++v) {
+    const bool middle = r.mesh.positions[v][2] > 0.5f && r.mesh.positions[v][2] < 1.5f;
+    EXPECT_EQ(r.mesh.skin[v].weights[1] > 0.5f, middle) << "vertex " << v << " follows the other bone";
+  }
+  EXPECT_LT(r.triangles_after, cyl.triangle_count());  // columns still merge
+  expect_valid(r.mesh);
+
+  options.skin_max_distance = 3.0;  // every pair mergeable: the rule is off
+  const PolychordResult off = simplify_polychord(cyl, options);
+  EXPECT_LT(rings(off.mesh), 3u) << "the scenario does not exercise the rule";
+}
+
+TEST(Polychord, PriorityAtTheLockLevelLocks) {
+  Mesh torus = make_torus(32, 12);
+  torus.priority.assign(torus.vertex_count(), 1.0f);
+  for (std::size_t v = 0; v < torus.vertex_count(); ++v) {
+    if (torus.positions[v][1] > 0.0f) torus.priority[v] = 50.0f;
+  }
+  PolychordOptions options{.target_ratio = 0.5};
+  options.priority_lock = 50.0;
+  const PolychordResult r = simplify_polychord(torus, options);
+  std::set<std::array<float, 3>> output;
+  for (const Vec3f& p : r.mesh.positions) output.insert(p.v);
+  for (std::size_t v = 0; v < torus.vertex_count(); ++v) {
+    if (torus.priority[v] >= 50.0f) EXPECT_TRUE(output.count(torus.positions[v].v)) << "painted vertex " << v;
+  }
+  EXPECT_LT(r.triangles_after, torus.triangle_count());
+  expect_valid(r.mesh);
 }
 
 TEST(Polychord, LockedVerticesStayPut) {
