@@ -308,6 +308,11 @@ constexpr EnumName<BorderMode> kBorderNames[] = {
     {"lock", BorderMode::lock},
 };
 
+constexpr EnumName<AttributePlacement> kPlacementNames[] = {
+    {"optimal", AttributePlacement::optimal},
+    {"keep", AttributePlacement::keep},
+};
+
 constexpr EnumName<GltfLods> kGltfLodsNames[] = {
     {"msft_lod", GltfLods::msft_lod},
     {"files", GltfLods::files},
@@ -508,7 +513,10 @@ const std::vector<Field<LodOptions>>& option_fields() {
       B::object("attribute_weights", &SimplifyOptions::attribute_weights, &attribute_weight_fields),
       B::flag("permissive", &SimplifyOptions::permissive),
       B::text("priority_channel", &SimplifyOptions::priority_channel, &priority_channel_problem),
+      B::choice("attribute_placement", &SimplifyOptions::attribute_placement, kPlacementNames),
+      B::number("priority_lock", &SimplifyOptions::priority_lock, above(0)),
       B::number("skin_weight_threshold", &SimplifyOptions::skin_weight_threshold, at_least(0).at_most(1)),
+      B::number("skin_max_distance", &SimplifyOptions::skin_max_distance, at_least(0).at_most(2)),
   };
   return fields;
 }

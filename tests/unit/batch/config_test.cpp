@@ -20,7 +20,8 @@ using Json = nlohmann::json;
 
 constexpr const char* kOptionKeys =
     "engine, border, border_weight, regularization_weight, max_flip_angle_deg, seed, multiple_choice_k, max_batch, "
-    "attribute_weights, permissive, priority_channel, skin_weight_threshold";
+    "attribute_weights, permissive, priority_channel, attribute_placement, priority_lock, skin_weight_threshold, "
+    "skin_max_distance";
 
 std::string lod_keys() {
   return std::string("ratio, triangles, max_error, screen_size, from, ") + kOptionKeys;
@@ -123,6 +124,7 @@ TEST(BatchConfig, OptionsResolveDefaultsThenClassThenLod) {
         {"ratio": 0.5},
         {"ratio": 0.25, "seed": 7, "engine": "edge_collapse", "attribute_weights": {"skin": 2},
          "permissive": true, "skin_weight_threshold": 0.3, "regularization_weight": 0.5, "border_weight": 2,
+         "attribute_placement": "keep", "priority_lock": 20, "skin_max_distance": 0.25,
          "multiple_choice_k": 16, "max_batch": 1, "from": "source"}
       ]
     }]
@@ -155,6 +157,10 @@ TEST(BatchConfig, OptionsResolveDefaultsThenClassThenLod) {
   EXPECT_EQ(lod2.options.simplify.attribute_weights, (AttributeWeights{.normal = 3, .uv = 4, .color = 1, .skin = 2}));
   EXPECT_TRUE(lod2.options.simplify.permissive);
   EXPECT_EQ(lod2.options.simplify.skin_weight_threshold, 0.3);
+  EXPECT_EQ(lod2.options.simplify.attribute_placement, AttributePlacement::keep);
+  EXPECT_EQ(lod1.options.simplify.attribute_placement, AttributePlacement::optimal);
+  EXPECT_EQ(lod2.options.simplify.priority_lock, 20.0);
+  EXPECT_EQ(lod2.options.simplify.skin_max_distance, 0.25);
   // The class's own options stay as the class set them.
   EXPECT_EQ(c.classes[0].options.simplify.seed, 6u);
 }
@@ -572,6 +578,10 @@ TEST(BatchConfigErrors, NumericOptions) {
             expected("defaults.skin_weight_threshold: must be <= 1"));
   EXPECT_EQ(error_with("/defaults/skin_weight_threshold", -0.1),
             expected("defaults.skin_weight_threshold: must be >= 0"));
+  EXPECT_EQ(error_with("/defaults/skin_max_distance", 2.5), expected("defaults.skin_max_distance: must be <= 2"));
+  EXPECT_EQ(error_with("/defaults/priority_lock", 0), expected("defaults.priority_lock: must be > 0"));
+  EXPECT_EQ(error_with("/defaults/attribute_placement", "survivor"),
+            expected("defaults.attribute_placement: must be one of \"optimal\", \"keep\", got string \"survivor\""));
 }
 
 TEST(BatchConfigErrors, AttributeWeights) {
