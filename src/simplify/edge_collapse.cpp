@@ -13,10 +13,11 @@
 //   setup        normalise to the unit cube, build face lists, classify vertices, accumulate quadrics
 //   candidates   every allowed edge evaluated in parallel, queued (bucketed 4-ary min-heap of
 //                (cost, u, v, version sum); stale entries are skipped when they surface)
-//   rounds       pop the cheapest candidates whose closed neighbourhoods are disjoint (a batch, in cost order)
-//                → check them in parallel → commit in order (rejected ones are parked on their endpoints;
-//                list space is reserved in order, the rewrites run in parallel) → re-evaluate the edges around
-//                the survivors in parallel, and the parked candidates of their neighbourhoods → push in order
+//   rounds       pop the cheapest candidates whose closed neighbourhoods are disjoint (a batch, in cost order;
+//                the neighbourhoods are gathered in parallel) → check them in parallel → commit in order
+//                (rejected ones are parked on their endpoints; list space is reserved in order, then each
+//                rewrite and the re-evaluation of the edges around its survivor run in parallel) → re-evaluate
+//                the parked candidates of the survivors' neighbourhoods → push in order
 //   output       compact alive faces, wedges and vertices
 // Every parallel step writes per-item outputs; everything that orders (pops, pushes, reservations) is
 // sequential, so the output is byte-identical for any thread count.
@@ -24,16 +25,18 @@
 
 #include <algorithm>
 #include <array>
-#include <span>
 #include <bit>
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <numbers>
+#include <span>
 #include <stdexcept>
 #include <string>
 
 #include "lodforge/core/mesh.hpp"
+#include "lodforge/metric/skin.hpp"
 
 namespace lodforge::collapse {
 namespace {
@@ -137,6 +140,7 @@ class CandidateQueue {
   CandidateQueue() : buckets_(std::size_t{1} << (32 - kBucketShift)) {}
 
   std::size_t size() const { return stored_; }
+  bool heap_empty() const { return heap_.empty(); }
   const QueueEntry& top() const { return heap_.front(); }
 
   void push(const QueueEntry& e) {
@@ -398,7 +402,9 @@ CollapseMesh::CollapseMesh(const Mesh& m, const SimplifyOptions& options, Parall
   pool_.resize(acc);
   {
     std::vector<std::uint32_t> fill(begin_);
-    for (std::size_t i = 0; i < tri_.size(); ++i) pool_[fill[tri_[i]]++] = static_cast<std::uint32_t>(i / 3);
+    for (std::uint32_t f = 0; f < total; ++f) {
+      for (int j = 0; j < 3; ++j) pool_[fill[tri_[3 * std::size_t{f} + j]]++] = f;
+    }
   }
 
   // Working copies of what collapses may change.
@@ -580,25 +586,28 @@ void CollapseMesh::setup(Parallel& parallel) {
   const bool lock_border = options_.border_mode == BorderMode::lock;
 
   // Face planes once per face (unit normal, offset, area); each vertex then sums its faces' quadrics.
+  // Plain doubles and no value-initialisation: every entry is written below.
   struct FacePlane {
-    Vec3d n;
-    double d, area;
+    double n[3], d, area;
   };
-  std::vector<FacePlane> planes(tri_source_.size());
-  parallel.for_ranges(planes.size(), 4096, [&](std::size_t b, std::size_t e) {
+  const std::size_t nf = tri_source_.size();
+  const std::unique_ptr<FacePlane[]> planes(new FacePlane[nf]);
+  parallel.for_ranges(nf, 4096, [&](std::size_t b, std::size_t e) {
     for (std::size_t f = b; f < e; ++f) {
       const std::uint32_t* t = &tri_[3 * f];
       const Vec3d n = cross(vx_[t[1]].pos - vx_[t[0]].pos, vx_[t[2]].pos - vx_[t[0]].pos);
       const double len = length(n);
       if (len > 0.0 && std::isfinite(len)) {
         const Vec3d unit = n * (1.0 / len);
-        planes[f] = {unit, -dot(unit, vx_[t[0]].pos), 0.5 * len};
+        planes[f] = {{unit[0], unit[1], unit[2]}, -dot(unit, vx_[t[0]].pos), 0.5 * len};
       } else {
-        planes[f] = {{}, 0.0, 0.0};  // degenerate or non-finite: no surface
+        planes[f] = {{0.0, 0.0, 0.0}, 0.0, 0.0};  // degenerate or non-finite: no surface
       }
     }
   });
 
+  // Each vertex's surface area (its quadric's weight), densely: summed in vertex order below.
+  std::vector<double> vertex_area(nv, 0.0);
   tbb::enumerable_thread_specific<Scratch> scratch;
   parallel.for_ranges(nv, 1024, [&](std::size_t vb, std::size_t ve) {
     Scratch& s = scratch.local();
@@ -627,7 +636,7 @@ void CollapseMesh::setup(Parallel& parallel) {
         const std::uint32_t kc = key(3 * std::size_t{fl[i]} + j);
         if (nkeys < 3 && kc != keys[0] && (nkeys < 2 || kc != keys[1])) keys[nkeys++] = kc;
         const FacePlane& pl = planes[fl[i]];
-        Quadric fq = Quadric::from_plane(pl.n, pl.d, pl.area);
+        Quadric fq = Quadric::from_plane(Vec3d{{pl.n[0], pl.n[1], pl.n[2]}}, pl.d, pl.area);
         fq.weight = pl.area;
         q += fq;
       }
@@ -654,6 +663,7 @@ void CollapseMesh::setup(Parallel& parallel) {
         }
         if (closed && cur == 0) {
           vx_[v].quadric = q;
+          vertex_area[v] = q.weight;
           kind_[v] = nkeys > 1 ? seam_kind : VertexKind::interior;
           if (kind_[v] != VertexKind::complex) state_[v] |= kFan;
           continue;
@@ -715,6 +725,7 @@ void CollapseMesh::setup(Parallel& parallel) {
       if (fans > 1) non_manifold = true;
 
       vx_[v].quadric = q;
+      vertex_area[v] = q.weight;
       if (user_locked[v] || non_manifold || inconsistent || (lock_border && boundary)) {
         kind_[v] = VertexKind::locked;
       } else {
@@ -726,7 +737,8 @@ void CollapseMesh::setup(Parallel& parallel) {
 
   // Faces touching a frozen vertex: their other vertices lock too (any collapse would test or move a face
   // with a non-finite corner).
-  for (std::size_t f = 0; f < tri_source_.size(); ++f) {
+  const bool any_frozen = std::find(kind_.begin(), kind_.end(), VertexKind::frozen) != kind_.end();
+  for (std::size_t f = 0; any_frozen && f < nf; ++f) {
     const std::uint32_t* t = &tri_[3 * f];
     if (kind_[t[0]] == VertexKind::frozen || kind_[t[1]] == VertexKind::frozen || kind_[t[2]] == VertexKind::frozen) {
       for (int i = 0; i < 3; ++i) {
@@ -741,7 +753,7 @@ void CollapseMesh::setup(Parallel& parallel) {
   // added to three vertices). Summed in vertex order: deterministic. Kept apart from the surface quadric as
   // (count, sum of positions): it only steers the placement; the cost is the surface error alone.
   double area3 = 0.0;
-  for (std::size_t v = 0; v < nv; ++v) area3 += vx_[v].quadric.weight;
+  for (std::size_t v = 0; v < nv; ++v) area3 += vertex_area[v];
   const double mean_area = alive_faces_ > 0 ? area3 / 3.0 / static_cast<double>(alive_faces_) : 0.0;
   weight_floor_ = std::max(1e-30, 1e-6 * mean_area);
   reg_weight_ = options_.regularization_weight * mean_area;
@@ -777,6 +789,13 @@ void CollapseMesh::setup_attributes(Parallel& parallel) {
   const Mesh& m = src_;
   const std::size_t nf = tri_source_.size(), nw = m.wedge_count(), nv = vx_.size();
   const AttributeWeights& aw = options_.attribute_weights;
+  bool metric = !normals_.empty() || !skin_.empty();  // anything below that needs the areas
+  for (const auto& set : uvs_) metric |= !set.empty();
+  for (const auto& set : colors_) metric |= !set.empty();
+  if (!metric) {  // geometry only (morph deltas at most): no groups, no skin term
+    carry_ = blend_ && !morphs_.empty();
+    return;
+  }
   double area = 0.0;
   std::vector<double> uv_area(uvs_.size(), 0.0);
   for (std::size_t f = 0; f < nf; ++f) {
@@ -990,53 +1009,6 @@ void CollapseMesh::add_attribute_quadrics(std::uint32_t u, std::uint32_t v, Quad
   }
 }
 
-namespace {
-
-// Weights of an influence set with those below `threshold` dropped, as (joint, weight) sorted by joint.
-int significant_influences(const SkinInfluences& s, float threshold, std::pair<std::uint16_t, float>* out) {
-  int n = 0;
-  for (int i = 0; i < kMaxInfluences; ++i) {
-    if (s.weights[i] > 0.0f && s.weights[i] >= threshold) out[n++] = {s.joints[i], s.weights[i]};
-  }
-  std::sort(out, out + n);
-  return n;
-}
-
-// Dominant joint (largest significant weight; ties: the lower joint id) and the L1 and squared L2 distances of
-// two weight vectors over the union of their significant joints.
-struct SkinComparison {
-  bool same_dominant = true;
-  double l1 = 0, l2sq = 0;
-};
-SkinComparison compare_skin(const SkinInfluences& x, const SkinInfluences& y, float threshold) {
-  std::pair<std::uint16_t, float> a[kMaxInfluences], b[kMaxInfluences];
-  const int na = significant_influences(x, threshold, a), nb = significant_influences(y, threshold, b);
-  auto dominant = [](const std::pair<std::uint16_t, float>* p, int n) {
-    int best = -1;
-    for (int i = 0; i < n; ++i) {
-      if (best < 0 || p[i].second > p[best].second) best = i;
-    }
-    return best < 0 ? -1 : static_cast<int>(p[best].first);
-  };
-  SkinComparison c;
-  c.same_dominant = dominant(a, na) == dominant(b, nb);
-  int i = 0, j = 0;
-  while (i < na || j < nb) {
-    double d = 0.0;
-    if (j >= nb || (i < na && a[i].first < b[j].first)) {
-      d = a[i++].second;
-    } else if (i >= na || b[j].first < a[i].first) {
-      d = b[j++].second;
-    } else {
-      d = static_cast<double>(a[i++].second) - static_cast<double>(b[j++].second);
-    }
-    c.l1 += std::abs(d);
-    c.l2sq += d * d;
-  }
-  return c;
-}
-
-}  // namespace
 
 // Soft skinning term: merging two point masses of areas W_u, W_v whose weight vectors differ by Δ costs
 // W_u W_v / (W_u + W_v) |Δ|² (the spread about their weighted mean), in the units of a normal change.
@@ -1250,8 +1222,7 @@ bool CollapseMesh::uv_ok(std::uint32_t a, std::uint32_t b, const Check& c, const
 // join distant weights) was tried: on the skinned corpus it vetoes so many cheap collapses that the bind-pose
 // distance error grows 3-40x (CesiumMan at 25%: 0.25% of the diagonal against 0.04%).
 bool CollapseMesh::skin_ok(std::uint32_t a, std::uint32_t b) const {
-  const SkinComparison c = compare_skin(skin_[a], skin_[b], static_cast<float>(options_.skin_weight_threshold));
-  return c.same_dominant || c.l1 < options_.skin_max_distance;
+  return skin_mergeable(skin_[a], skin_[b], options_.skin_weight_threshold, options_.skin_max_distance);
 }
 
 // Link condition with boundaries coned to a virtual vertex ω (ω is a neighbour of every boundary vertex and
@@ -1465,6 +1436,10 @@ void CollapseMesh::reserve(Check& c) {
 
 void CollapseMesh::apply(const Check& c, const Vec3d& x, Scratch& s) {
   const std::uint32_t a = c.victim, b = c.survivor, k = c.edge_face_count;
+  for (std::uint32_t w : {a, b}) {
+    const std::uint32_t* fl = &pool_[begin_[w]];
+    for (std::uint32_t i = 0; i < size_[w]; ++i) __builtin_prefetch(&tri_[3 * std::size_t{fl[i]}]);
+  }
   if (carry_) carry_attributes(c, x, s);
   std::uint32_t ka[2] = {kInvalidIndex, kInvalidIndex}, wb[2] = {kInvalidIndex, kInvalidIndex};
   std::uint32_t kb[2] = {kInvalidIndex, kInvalidIndex};
@@ -1495,6 +1470,8 @@ void CollapseMesh::apply(const Check& c, const Vec3d& x, Scratch& s) {
     }
   }
   {
+    // Without a seam every corner of a carries ka[0] == ka[1]: no need to read the keys.
+    const bool seam = (state_[a] & kSeam) != 0;
     const std::uint32_t* fl = &pool_[begin_[a]];
     for (std::uint32_t i = 0; i < size_[a]; ++i) {
       const std::uint32_t f = fl[i];
@@ -1503,7 +1480,7 @@ void CollapseMesh::apply(const Check& c, const Vec3d& x, Scratch& s) {
       const int j = corner_of(t, a);
       t[j] = b;
       const std::size_t corner = 3 * std::size_t{f} + j;
-      const int side = (k == 2 && key(corner) == ka[1]) ? 1 : 0;
+      const int side = (k == 2 && (!seam || key(corner) == ka[1])) ? 1 : 0;
       tri_wedge_[corner] = wb[side];
       if (!tri_key_.empty()) tri_key_[corner] = kb[side];
       s.ring.push_back(f);
@@ -1822,9 +1799,11 @@ SimplifyResult run_edge_collapse(const Mesh& triangles, const SimplifyOptions& o
       for (std::size_t c = cb; c < ce; ++c) {
         std::vector<QueueEntry>& out = chunks[c];
         const std::size_t vend = std::min(nv, (c + 1) * kChunk);
+        out.reserve(3 * (vend - c * kChunk) + 64);  // about 3 edges per vertex on a closed surface
         for (std::size_t v = c * kChunk; v < vend; ++v) {
           const auto u = static_cast<std::uint32_t>(v);
           cm.ring(u, s.ring);
+          for (std::uint32_t w : s.ring) cm.prefetch(w);
           for (std::uint32_t w : s.ring) {
             if (w <= u || cm.rule(u, w) == EdgeRule::forbidden) continue;
             out.push_back(make_entry(cost_bits(cm.evaluate(u, w).cost), u, w, cm.version(u) + cm.version(w)));
@@ -1844,7 +1823,8 @@ SimplifyResult run_edge_collapse(const Mesh& triangles, const SimplifyOptions& o
   ParkingLot parked(nv);
   std::vector<std::uint32_t> mark(nv, 0);
   std::uint32_t stamp = 0;
-  std::vector<QueueEntry> selected, deferred;
+  std::vector<QueueEntry> selected, deferred, window;
+  std::vector<std::size_t> window_first;
   std::vector<std::uint32_t> closed_ring;
   std::vector<Evaluation> evals;
   std::vector<Check> checks;
@@ -1864,31 +1844,58 @@ SimplifyResult run_edge_collapse(const Mesh& triangles, const SimplifyOptions& o
     batch = std::min(batch, (remaining + 1) / 2);  // an interior collapse removes two triangles
 
     // Select: cheapest first; defer candidates whose closed neighbourhood touches an already selected one.
+    // Candidates are popped a window at a time and their closed neighbourhoods gathered in parallel (the mesh
+    // does not change during selection); the conflict tests then run in pop order, and whatever the window
+    // popped beyond the end of the selection goes back into the queue, so the batch is the one a
+    // one-at-a-time selection makes.
     selected.clear();
     deferred.clear();
     ++stamp;
-    while (selected.size() < batch && queue.refill(parallel, current)) {
-      const QueueEntry e = queue.top();
-      if (!current(e)) {
+    bool full = false;
+    while (!full && selected.size() < batch) {
+      window.clear();
+      // A quarter more than the batch still needs: some will conflict (fewer windows, fewer parallel loops).
+      const std::size_t want = std::max<std::size_t>((batch - selected.size()) * 5 / 4, 32);
+      while (window.size() < want && queue.refill(parallel, current)) {
+        const QueueEntry e = queue.top();
         queue.pop();
-        continue;
+        if (current(e)) window.push_back(e);
       }
-      queue.pop();
-      const std::size_t span = 3 * (std::size_t{cm.star_size(e.u())} + cm.star_size(e.v));
-      if (closed_ring.size() < span) closed_ring.resize(2 * span);
-      std::uint32_t* ring_out = closed_ring.data();
-      bool conflict = false;
-      cm.for_each_closed_ring_vertex(e.u(), e.v, [&](std::uint32_t w) {
-        conflict |= mark[w] == stamp;
-        *ring_out++ = w;
+      if (window.empty()) break;
+      const std::size_t nwin = window.size();
+      window_first.resize(nwin + 1);
+      std::size_t span = 0;
+      for (std::size_t i = 0; i < nwin; ++i) {
+        window_first[i] = span;
+        span += 3 * (std::size_t{cm.star_size(window[i].u())} + cm.star_size(window[i].v));
+      }
+      window_first[nwin] = span;
+      if (closed_ring.size() < span) closed_ring.resize(span);
+      parallel.for_ranges(nwin, 32, [&](std::size_t b, std::size_t e) {
+        for (std::size_t i = b; i < e; ++i) {
+          if (i + 1 < e) {
+            cm.prefetch_star(window[i + 1].u());
+            cm.prefetch_star(window[i + 1].v);
+          }
+          std::uint32_t* out = &closed_ring[window_first[i]];
+          cm.for_each_closed_ring_vertex(window[i].u(), window[i].v, [&](std::uint32_t w) { *out++ = w; });
+        }
       });
-      if (conflict) {
-        deferred.push_back(e);
-        if (deferred.size() >= 2 * batch) break;
-        continue;
+      std::size_t i = 0;
+      for (; i < nwin && !full && selected.size() < batch; ++i) {
+        const std::uint32_t* ring_begin = &closed_ring[window_first[i]];
+        const std::uint32_t* ring_end = &closed_ring[window_first[i + 1]];
+        bool conflict = false;
+        for (const std::uint32_t* w = ring_begin; w != ring_end; ++w) conflict |= mark[*w] == stamp;
+        if (conflict) {
+          deferred.push_back(window[i]);
+          full = deferred.size() >= 2 * batch;
+          continue;
+        }
+        for (const std::uint32_t* w = ring_begin; w != ring_end; ++w) mark[*w] = stamp;
+        selected.push_back(window[i]);
       }
-      for (const std::uint32_t* w = closed_ring.data(); w != ring_out; ++w) mark[*w] = stamp;
-      selected.push_back(e);
+      for (; i < nwin; ++i) queue.push(window[i]);  // popped beyond the selection: not looked at
     }
     if (selected.empty()) {
       for (const QueueEntry& e : deferred) queue.push(e);
@@ -1905,15 +1912,22 @@ SimplifyResult run_edge_collapse(const Mesh& triangles, const SimplifyOptions& o
       Scratch& s = scratch.local();
       for (std::size_t i = b; i < e; ++i) {
         const std::uint32_t u = selected[i].u(), v = selected[i].v;
+        if (i + 1 < e) {
+          cm.prefetch(selected[i + 1].u());
+          cm.prefetch(selected[i + 1].v);
+        }
         evals[i] = cm.evaluate(u, v);
         if (evals[i].error <= budget2) checks[i] = cm.check(u, v, evals[i].position, s);
       }
     });
 
     // Commit in selection order: room for the merged face lists is reserved sequentially (it may grow the
-    // pool), then the collapses apply in parallel (their neighbourhoods are disjoint).
+    // pool), then the collapses apply in parallel (their neighbourhoods are disjoint). Each survivor's ring
+    // region is sized here by its merged list (two neighbours per face).
     survivors.clear();
     committed.clear();
+    ring_first.clear();
+    std::uint32_t total = 0;
     for (std::size_t i = 0; i < ns; ++i) {
       if (evals[i].error > budget2) {
         over_budget = true;  // not parked: its cost only changes when an endpoint does
@@ -1924,34 +1938,36 @@ SimplifyResult run_edge_collapse(const Mesh& triangles, const SimplifyOptions& o
         ++result.rejected;
         continue;
       }
+      const Check& c = checks[i];
+      ring_first.push_back(total);
+      total += 2 * (cm.star_size(c.victim) + cm.star_size(c.survivor) - 2 * c.edge_face_count);
       cm.reserve(checks[i]);
       max_error = std::max(max_error, evals[i].error);
       committed.push_back(static_cast<std::uint32_t>(i));
-      survivors.push_back(checks[i].survivor);
+      survivors.push_back(c.survivor);
       ++result.collapses;
     }
-    parallel.for_ranges(committed.size(), 16, [&](std::size_t b, std::size_t e) {
-      Scratch& s = scratch.local();
-      for (std::size_t j = b; j < e; ++j) cm.apply(checks[committed[j]], evals[committed[j]].position, s);
-    });
-
-    // Re-evaluate the edges around each survivor, in parallel. Each survivor writes its ring and its fresh
-    // candidates into its own region (sized by the ring bound, two neighbours per face), so the result is in
-    // survivor order whatever the threads do. The neighbourhoods are disjoint: no edge appears twice.
     const std::size_t nsurv = survivors.size();
-    ring_first.resize(nsurv + 1);
-    std::uint32_t total = 0;
-    for (std::size_t i = 0; i < nsurv; ++i) {
-      ring_first[i] = total;
-      total += 2 * cm.star_size(survivors[i]);
-    }
-    ring_first[nsurv] = total;
+    ring_first.push_back(total);
     ring_buf.resize(total);
     ring_size.resize(nsurv);
     fresh.resize(total);
+
+    // Each collapse is applied and the edges around its survivor re-evaluated in one parallel pass: a
+    // survivor's ring and the quadrics its edges read lie in its own closed neighbourhood, which no other
+    // collapse of the batch touches. Each survivor writes its ring and its fresh candidates into its own
+    // region, so the result is in survivor order whatever the threads do; no edge appears twice.
     parallel.for_ranges(nsurv, 8, [&](std::size_t b, std::size_t e) {
       Scratch& s = scratch.local();
       for (std::size_t i = b; i < e; ++i) {
+        if (i + 1 < e) {  // the next collapse's records, while this one is applied
+          const Check& next = checks[committed[i + 1]];
+          for (std::uint32_t w : {next.victim, next.survivor}) {
+            cm.prefetch(w);
+            cm.prefetch_star(w);
+          }
+        }
+        cm.apply(checks[committed[i]], evals[committed[i]].position, s);
         const std::uint32_t sv = survivors[i];
         cm.ring(sv, s.ring);
         for (std::uint32_t w : s.ring) cm.prefetch(w);

@@ -191,9 +191,15 @@ class CollapseMesh {
   std::uint32_t star_size(std::uint32_t v) const { return size_[v]; }
   // Distinct neighbours of v (not v itself), in a deterministic order.
   void ring(std::uint32_t v, std::vector<std::uint32_t>& out) const;
+  // Hints that the face list of v will be read soon.
+  void prefetch_star(std::uint32_t v) const { __builtin_prefetch(&pool_[begin_[v]]); }
   // Calls f(w) for every vertex of every face of u and of v (with repeats): their closed neighbourhood.
   template <typename F>
   void for_each_closed_ring_vertex(std::uint32_t u, std::uint32_t v, F&& f) const {
+    for (std::uint32_t s : {u, v}) {  // the faces are scattered: ask for all of them before reading one
+      const std::uint32_t* fl = &pool_[begin_[s]];
+      for (std::uint32_t i = 0; i < size_[s]; ++i) __builtin_prefetch(&tri_[3 * std::size_t{fl[i]}]);
+    }
     for (std::uint32_t s : {u, v}) {
       const std::uint32_t* fl = &pool_[begin_[s]];
       for (std::uint32_t i = 0; i < size_[s]; ++i) {
