@@ -391,6 +391,8 @@ Json attribute_metrics(const EvalResult& e, const std::vector<Mesh>& sources, co
   for (std::size_t m = 0; m < sources.size() && m < lods.size(); ++m) {
     const std::size_t triangles = sources[m].triangle_count();
     if (triangles == 0 || lods[m].triangle_count() == 0) continue;
+    const Mesh& s = sources[m];
+    if (s.normals.empty() && s.uvs.empty() && s.colors.empty() && s.skin.empty()) continue;  // nothing to measure
     AttributeEvalOptions options;
     options.samples = std::clamp(kAttributeSamplesPerTriangle * triangles, kAttributeSamplesMin, kAttributeSamplesMax);
     options.pose_samples = kAttributePoseSamples;
