@@ -1774,6 +1774,19 @@ std::size_t target_triangle_count(const SimplifyOptions& o, std::size_t input_tr
   return std::min(input_triangles, static_cast<std::size_t>(std::max(t, 0.0)));
 }
 
+void finish_result(const CollapseMesh& cm, double max_error, std::size_t target, bool over_budget,
+                   SimplifyResult& result) {
+  const auto t0 = std::chrono::steady_clock::now();
+  result.mesh = cm.output();
+  result.triangles_after = cm.alive_faces();
+  result.error_bound_abs = std::sqrt(max_error) * cm.scale();
+  result.error_bound_rel = cm.diagonal() > 0.0 ? result.error_bound_abs / cm.diagonal() : 0.0;
+  result.stop_reason = cm.alive_faces() <= target ? StopReason::target_reached
+                       : over_budget              ? StopReason::error_budget
+                                                  : StopReason::no_valid_collapse;
+  result.timings.output_ms = elapsed_ms(t0);
+}
+
 // ---- the greedy engine -------------------------------------------------------------------------------------------
 
 SimplifyResult run_edge_collapse(const Mesh& triangles, const SimplifyOptions& options) {
@@ -2020,15 +2033,7 @@ SimplifyResult run_edge_collapse(const Mesh& triangles, const SimplifyOptions& o
   }
   result.timings.collapse_ms = elapsed_ms(t0);
 
-  t0 = std::chrono::steady_clock::now();
-  result.mesh = cm.output();
-  result.triangles_after = cm.alive_faces();
-  result.error_bound_abs = std::sqrt(max_error) * cm.scale();
-  result.error_bound_rel = cm.diagonal() > 0.0 ? result.error_bound_abs / cm.diagonal() : 0.0;
-  result.stop_reason = cm.alive_faces() <= target ? StopReason::target_reached
-                       : over_budget              ? StopReason::error_budget
-                                                  : StopReason::no_valid_collapse;
-  result.timings.output_ms = elapsed_ms(t0);
+  finish_result(cm, max_error, target, over_budget, result);
   return result;
 }
 

@@ -178,15 +178,7 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
   }
   result.timings.collapse_ms = elapsed_ms(t0);
 
-  t0 = std::chrono::steady_clock::now();
-  result.mesh = cm.output();
-  result.triangles_after = cm.alive_faces();
-  result.error_bound_abs = std::sqrt(max_error) * cm.scale();
-  result.error_bound_rel = cm.diagonal() > 0.0 ? result.error_bound_abs / cm.diagonal() : 0.0;
-  result.stop_reason = cm.alive_faces() <= target ? StopReason::target_reached
-                       : over_budget              ? StopReason::error_budget
-                                                  : StopReason::no_valid_collapse;
-  result.timings.output_ms = elapsed_ms(t0);
+  finish_result(cm, max_error, target, over_budget, result);
   return result;
 }
 

@@ -317,5 +317,9 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
 double normalised_budget_squared(const SimplifyOptions& options, double scale, double diagonal);
 // Triangle count to stop at.
 std::size_t target_triangle_count(const SimplifyOptions& options, std::size_t input_triangles);
+// The end of an engine run: the output mesh and its triangle count, the error bound (from the largest committed
+// cost, normalised and squared), why it stopped, and the output time.
+void finish_result(const CollapseMesh& cm, double max_error, std::size_t target, bool over_budget,
+                   SimplifyResult& result);
 
 }  // namespace lodforge::collapse
