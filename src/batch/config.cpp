@@ -454,31 +454,9 @@ struct FieldsOf {
   }
 };
 
-bool is_ascii_word(std::string_view s) {
-  return !s.empty() && std::all_of(s.begin(), s.end(), [](char c) {
-    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_';
-  });
-}
-
-bool is_ascii_number(std::string_view s) {
-  return !s.empty() && std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; });
-}
-
-// "none", a custom attribute ("_LOD_PRIORITY") or one component of it ("_PAINT.x"), or a colour channel
-// ("COLOR_0.r"): the glTF attribute names a painted weight can live in. Same grammar as the schema's pattern.
+// A painted-priority channel (simplify.hpp, is_priority_channel); the schema's pattern is the same grammar.
 std::string priority_channel_problem(const std::string& s) {
-  if (s == "none") return {};
-  const std::string_view all(s);
-  const std::size_t dot = all.find('.');
-  const std::string_view name = all.substr(0, dot);
-  const std::string_view component = dot == std::string_view::npos ? std::string_view() : all.substr(dot + 1);
-  auto one_of = [&](std::string_view allowed) {
-    return component.size() == 1 && allowed.find(component[0]) != std::string_view::npos;
-  };
-  const bool custom = name.size() > 1 && name[0] == '_' && is_ascii_word(name.substr(1)) &&
-                      (dot == std::string_view::npos || one_of("xyzwrgba"));
-  const bool colour = name.starts_with("COLOR_") && is_ascii_number(name.substr(6)) && one_of("rgba");
-  if (custom || colour) return {};
+  if (is_priority_channel(s)) return {};
   return "must be \"none\", a custom attribute such as \"_LOD_PRIORITY\" or \"_PAINT.x\", or a colour channel "
          "such as \"COLOR_0.r\"; got " +
          dump(Json(s));

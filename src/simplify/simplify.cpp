@@ -2,6 +2,7 @@
 // Garland & Heckbert 1997; multiple_choice.cpp: Wu & Kobbelt 2002). Polygon input is fan-triangulated first.
 #include "lodforge/simplify/simplify.hpp"
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -39,6 +40,10 @@ std::vector<std::string> SimplifyOptions::validate() const {
       problems.push_back(std::string("attribute_weights.") + name + " must be finite and >= 0, got " + std::to_string(w));
     }
   }
+  if (!is_priority_channel(priority_channel)) {
+    problems.push_back("priority_channel must be \"none\", a custom attribute such as \"_LOD_PRIORITY\" or "
+                       "\"_PAINT.x\", or a colour channel such as \"COLOR_0.r\"; got \"" + priority_channel + "\"");
+  }
   if (!(priority_lock > 0.0)) problems.push_back("priority_lock must be > 0, got " + std::to_string(priority_lock));
   if (!(skin_weight_threshold >= 0.0 && skin_weight_threshold <= 1.0)) {
     problems.push_back("skin_weight_threshold must be in [0, 1], got " + std::to_string(skin_weight_threshold));
@@ -50,6 +55,32 @@ std::vector<std::string> SimplifyOptions::validate() const {
     problems.push_back("multiple_choice_k must be in [1, 256], got " + std::to_string(multiple_choice_k));
   }
   return problems;
+}
+
+namespace {
+bool is_ascii_word(std::string_view s) {
+  return !s.empty() && std::all_of(s.begin(), s.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_';
+  });
+}
+
+bool is_ascii_number(std::string_view s) {
+  return !s.empty() && std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; });
+}
+}  // namespace
+
+bool is_priority_channel(std::string_view channel) {
+  if (channel == "none") return true;
+  const std::size_t dot = channel.find('.');
+  const std::string_view name = channel.substr(0, dot);
+  const std::string_view component = dot == std::string_view::npos ? std::string_view() : channel.substr(dot + 1);
+  auto one_of = [&](std::string_view allowed) {
+    return component.size() == 1 && allowed.find(component[0]) != std::string_view::npos;
+  };
+  const bool custom = name.size() > 1 && name[0] == '_' && is_ascii_word(name.substr(1)) &&
+                      (dot == std::string_view::npos || one_of("xyzwrgba"));
+  const bool colour = name.starts_with("COLOR_") && is_ascii_number(name.substr(6)) && one_of("rgba");
+  return custom || colour;
 }
 
 const char* stop_reason_name(StopReason r) {

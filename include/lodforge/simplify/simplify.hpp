@@ -23,6 +23,7 @@
 
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "lodforge/core/mesh.hpp"
@@ -109,6 +110,10 @@ struct SimplifyOptions {
   // Every problem at once, one line each; empty = valid.
   std::vector<std::string> validate() const;
 };
+
+// Whether `channel` names a place a painted priority can live in: "none", a custom attribute ("_LOD_PRIORITY")
+// or one component of it ("_PAINT.x"), or a colour channel ("COLOR_0.r"). The grammar of configs/schema.json.
+bool is_priority_channel(std::string_view channel);
 
 enum class StopReason { target_reached, error_budget, no_valid_collapse };
 const char* stop_reason_name(StopReason r);

@@ -153,7 +153,9 @@ TEST(Polychord, PriorityAtTheLockLevelLocks) {
   std::set<std::array<float, 3>> output;
   for (const Vec3f& p : r.mesh.positions) output.insert(p.v);
   for (std::size_t v = 0; v < torus.vertex_count(); ++v) {
-    if (torus.priority[v] >= 50.0f) EXPECT_TRUE(output.count(torus.positions[v].v)) << "painted vertex " << v;
+    if (torus.priority[v] >= 50.0f) {
+      EXPECT_TRUE(output.count(torus.positions[v].v)) << "painted vertex " << v;
+    }
   }
   EXPECT_LT(r.triangles_after, torus.triangle_count());
   expect_valid(r.mesh);

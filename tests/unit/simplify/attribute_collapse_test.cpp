@@ -441,5 +441,16 @@ TEST(AttributeCollapse, OptionsAreValidated) {
   EXPECT_THROW(simplify(testing::make_tetrahedron(), o), std::invalid_argument);
 }
 
+TEST(AttributeCollapse, PriorityChannelMustNameAnAttribute) {
+  for (const char* ok : {"none", "_LOD_PRIORITY", "_PAINT.x", "_PAINT.a", "COLOR_0.r", "COLOR_12.a"}) {
+    EXPECT_TRUE(SimplifyOptions{.priority_channel = ok}.validate().empty()) << ok;
+  }
+  for (const char* bad : {"", "bogus", "_", "_PAINT.q", "COLOR_0", "COLOR_x.r", "COLOR_0.x", "_A B"}) {
+    const auto problems = SimplifyOptions{.priority_channel = bad}.validate();
+    ASSERT_EQ(problems.size(), 1u) << bad;
+    EXPECT_NE(problems[0].find("priority_channel"), std::string::npos) << problems[0];
+  }
+}
+
 }  // namespace
 }  // namespace lodforge
