@@ -103,7 +103,7 @@ TEST(BatchCli, ValidateConfigPrintsTheEffectiveConfigOrEveryError) {
   const CliResult ok = run_cli("validate-config " + q(fs::path(LODFORGE_SOURCE_DIR) / "configs/default.json"));
   EXPECT_EQ(ok.exit_code, 0) << ok.output;
   const Json effective = Json::parse(ok.output);
-  EXPECT_EQ(effective["classes"].size(), 4u);
+  EXPECT_EQ(effective["classes"].size(), 5u);  // quad_props, props, environment, characters, other
   EXPECT_TRUE(effective["defaults"].contains("engine")) << "defaults applied";
 
   std::ofstream(dir / "bad.json") << R"({"version": 1, "classes": [{"name": "a", "match": ["**"],

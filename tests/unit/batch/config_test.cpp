@@ -395,7 +395,8 @@ TEST(BatchConfig, DefaultConfigCoversTheSampleLibrary) {
     const AssetClass* cls = match_class(c, path);
     return cls ? cls->name : std::string("(none)");
   };
-  EXPECT_EQ(class_of("props/torus_quads.obj"), "props");
+  EXPECT_EQ(class_of("props/torus_quads.obj"), "quad_props");
+  EXPECT_EQ(class_of("props/kitchen/cup.obj"), "quad_props");
   EXPECT_EQ(class_of("props/bracket.stl"), "props");
   EXPECT_EQ(class_of("environment/rock.ply"), "environment");
   EXPECT_EQ(class_of("environment/terrain_patch.off"), "environment");
@@ -405,6 +406,10 @@ TEST(BatchConfig, DefaultConfigCoversTheSampleLibrary) {
   ASSERT_NE(props, nullptr);
   ASSERT_EQ(props->lods.size(), 3u);
   EXPECT_EQ(props->lods[2].target.ratio, 0.1);
+  const AssetClass* quad_props = find_class(c, "quad_props");
+  ASSERT_NE(quad_props, nullptr);
+  EXPECT_EQ(quad_props->lods[0].options.simplify.engine, Engine::polychord);
+  EXPECT_EQ(quad_props->lods[2].options.simplify.engine, Engine::edge_collapse);
   EXPECT_EQ(find_class(c, "environment")->lods.back().target.ratio, 0.05);
   EXPECT_EQ(find_class(c, "characters")->lods.size(), 2u);
 }
