@@ -389,17 +389,20 @@ Json attribute_metrics(const EvalResult& e, const std::vector<Mesh>& sources, co
   std::size_t flipped = 0, spanning = 0;
   bool has_uv = false, has_normals = false, skinned = false;
   for (std::size_t m = 0; m < sources.size() && m < lods.size(); ++m) {
-    const std::size_t triangles = sources[m].triangle_count();
-    if (triangles == 0 || lods[m].triangle_count() == 0) continue;
-    const Mesh& s = sources[m];
-    if (s.normals.empty() && s.uvs.empty() && s.colors.empty() && s.skin.empty()) continue;  // nothing to measure
+    const Mesh& source = sources[m];
+    const Mesh& lod = lods[m];
+    const std::size_t triangles = source.triangle_count();
+    if (triangles == 0 || lod.triangle_count() == 0) continue;
+    if (source.normals.empty() && source.uvs.empty() && source.colors.empty() && source.skin.empty()) {
+      continue;  // nothing to measure
+    }
     AttributeEvalOptions options;
     options.samples = std::clamp(kAttributeSamplesPerTriangle * triangles, kAttributeSamplesMin, kAttributeSamplesMax);
     options.pose_samples = kAttributePoseSamples;
     options.threads = threads_for(triangles, jobs);
-    const AttributeEvalResult r = evaluate_attributes(sources[m], lods[m], options);
+    const AttributeEvalResult r = evaluate_attributes(source, lod, options);
     for (const AttributeError& a : r.attributes) rms[a.name] = std::max(rms[a.name], a.rms);
-    if (!sources[m].normals.empty() && !lods[m].normals.empty()) {
+    if (!source.normals.empty() && !lod.normals.empty()) {
       has_normals = true;
       normal_p95 = std::max(normal_p95, r.normal_deviation_p95_deg);
     }

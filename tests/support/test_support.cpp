@@ -2,6 +2,7 @@
 
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -77,8 +78,14 @@ std::string gltf_validator_unavailable() {
 CommandResult validate_gltf(const std::vector<std::filesystem::path>& files, const std::filesystem::path& baseline) {
   std::string cmd = "node " + shell_quote(std::filesystem::path(LODFORGE_SOURCE_DIR) / "tests" / "support" /
                                           "validate_gltf.mjs");
-  if (!baseline.empty()) cmd += " --baseline " + shell_quote(baseline);
-  for (const std::filesystem::path& f : files) cmd += " " + shell_quote(f);
+  if (!baseline.empty()) {
+    cmd += " --baseline ";
+    cmd += shell_quote(baseline);
+  }
+  for (const std::filesystem::path& f : files) {
+    cmd += ' ';
+    cmd += shell_quote(f);
+  }
   return run_command(cmd);
 }
 
@@ -159,6 +166,32 @@ Mesh make_uv_sphere(int rings, int segments, float radius) {
     }
   }
   for (int s = 0; s < segments; ++s) m.add_face({ring(rings - 1, s), south, ring(rings - 1, s + 1)});
+  return with_default_material(std::move(m));
+}
+
+Mesh make_two_bone_cylinder(int rings, int segments, float band_start, float band_width) {
+  Mesh m;
+  for (int i = 0; i <= rings; ++i) {
+    const float z = 4.0f * float(i) / float(rings);
+    for (int j = 0; j < segments; ++j) {
+      const float a = 2.0f * 3.14159265f * float(j) / float(segments);
+      m.add_vertex_with_wedge({{std::cos(a), std::sin(a), z}});
+      const float w1 = std::clamp((z - band_start) / band_width, 0.0f, 1.0f);
+      SkinInfluences s;
+      s.joints = {0, 1};
+      s.weights = {1.0f - w1, w1};
+      m.skin.push_back(s);
+    }
+  }
+  for (int i = 0; i < rings; ++i) {
+    for (int j = 0; j < segments; ++j) {
+      const auto a = static_cast<std::uint32_t>(i * segments + j);
+      const auto b = static_cast<std::uint32_t>(i * segments + (j + 1) % segments);
+      const auto c = b + static_cast<std::uint32_t>(segments), d = a + static_cast<std::uint32_t>(segments);
+      m.add_face({a, b, c});
+      m.add_face({a, c, d});
+    }
+  }
   return with_default_material(std::move(m));
 }
 

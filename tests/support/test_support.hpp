@@ -51,5 +51,8 @@ Mesh make_tetrahedron();
 Mesh make_cube_quads();                 // 8 vertices, 6 quads, closed, outward
 Mesh make_grid(int nx, int ny, bool quads);  // open planar grid in z=0 over [0,nx]x[0,ny]
 Mesh make_uv_sphere(int rings, int segments, float radius = 1.0f);  // closed triangle sphere
+// Open unit-radius triangle cylinder along z in [0, 4] bound to two joints: joint 0 below z = band_start, joint 1
+// above band_start + band_width, weights linear in between (the blend band).
+Mesh make_two_bone_cylinder(int rings, int segments, float band_start, float band_width);
 
 }  // namespace lodforge::testing

@@ -94,35 +94,9 @@ TEST(AttributeEval, CountsTrianglesSpanningCharts) {
   EXPECT_EQ(r.uv_spanning(), 1u);
 }
 
-// A two-bone tube: bone 0 below z = 1.5, bone 1 above z = 2.5, blended between.
-Mesh skinned_tube() {
-  Mesh m;
-  const int rings = 20, segments = 12;
-  for (int i = 0; i <= rings; ++i) {
-    const float z = 4.0f * float(i) / float(rings);
-    for (int j = 0; j < segments; ++j) {
-      const float a = 2.0f * 3.14159265f * float(j) / float(segments);
-      m.add_vertex_with_wedge({{std::cos(a), std::sin(a), z}});
-      const float w1 = std::clamp(z - 1.5f, 0.0f, 1.0f);
-      SkinInfluences s;
-      s.joints = {0, 1};
-      s.weights = {1.0f - w1, w1};
-      m.skin.push_back(s);
-    }
-  }
-  for (int i = 0; i < rings; ++i) {
-    for (int j = 0; j < segments; ++j) {
-      const auto a = static_cast<std::uint32_t>(i * segments + j);
-      const auto b = static_cast<std::uint32_t>(i * segments + (j + 1) % segments);
-      m.add_face({a, b, b + std::uint32_t(segments)});
-      m.add_face({a, b + std::uint32_t(segments), a + std::uint32_t(segments)});
-    }
-  }
-  return m;
-}
-
 TEST(AttributeEval, SkinnedPosesExposeWrongWeights) {
-  const Mesh tube = skinned_tube();
+  // Bone 0 below z = 1.5, bone 1 above z = 2.5, blended between.
+  const Mesh tube = testing::make_two_bone_cylinder(20, 12, 1.5f, 1.0f);
   const AttributeEvalResult same = evaluate_attributes(tube, tube, kFast);
   ASSERT_EQ(same.poses.size(), 3u);  // bind + both joints (only two exist)
   EXPECT_EQ(same.poses[0].name, "bind");

@@ -22,7 +22,6 @@ namespace {
 namespace fs = std::filesystem;
 
 using ::lodforge::testing::validate_gltf;
-#define LODFORGE_REQUIRE_VALIDATOR() LODFORGE_REQUIRE_GLTF_VALIDATOR()
 
 const char* const kCorpus[] = {
     "gltf/Duck.glb",
@@ -48,7 +47,7 @@ std::string case_name(const ::testing::TestParamInfo<const char*>& info) {
 }
 
 TEST_P(GltfValidator, RoundTripHasNoNewErrors) {
-  LODFORGE_REQUIRE_VALIDATOR();
+  LODFORGE_REQUIRE_GLTF_VALIDATOR();
   LODFORGE_REQUIRE_CORPUS(src, GetParam());
   const fs::path dir = testing::temp_dir("gltf_validate_" + fs::path(GetParam()).stem().string());
   const Asset a = load_asset(src);
@@ -67,7 +66,7 @@ TEST_P(GltfValidator, RoundTripHasNoNewErrors) {
 INSTANTIATE_TEST_SUITE_P(Corpus, GltfValidator, ::testing::ValuesIn(kCorpus), case_name);
 
 TEST(GltfValidatorWrite, DocumentBuiltWithoutSourcePasses) {
-  LODFORGE_REQUIRE_VALIDATOR();
+  LODFORGE_REQUIRE_GLTF_VALIDATOR();
   Asset a;
   a.meshes.push_back(testing::make_cube_quads());
   a.meshes.push_back(testing::make_uv_sphere(8, 12));
@@ -88,7 +87,7 @@ TEST(GltfValidatorWrite, DocumentBuiltWithoutSourcePasses) {
 }
 
 TEST(GltfValidatorWrite, EditedMeshesPass) {
-  LODFORGE_REQUIRE_VALIDATOR();
+  LODFORGE_REQUIRE_GLTF_VALIDATOR();
   for (const char* file : {"gltf/CesiumMilkTruck.glb", "skinned/Fox.glb", "gltf/MorphStressTest.gltf"}) {
     SCOPED_TRACE(file);
     LODFORGE_REQUIRE_CORPUS(src, file);
@@ -113,7 +112,7 @@ TEST(GltfValidatorWrite, EditedMeshesPass) {
 }
 
 TEST(GltfValidatorWrite, DroppedAndAddedPrimitivesPass) {
-  LODFORGE_REQUIRE_VALIDATOR();
+  LODFORGE_REQUIRE_GLTF_VALIDATOR();
   LODFORGE_REQUIRE_CORPUS(src, "gltf/CesiumMilkTruck.glb");
   Asset a = load_asset(src);
   // Mesh 0: slot 1's faces go to a new slot without a source primitive, slot 2 loses all faces. Fewer new
@@ -187,7 +186,7 @@ struct Doc {
 };
 
 TEST(GltfValidatorWrite, HandMadeDocumentsPass) {
-  LODFORGE_REQUIRE_VALIDATOR();
+  LODFORGE_REQUIRE_GLTF_VALIDATOR();
   const fs::path dir = testing::temp_dir("gltf_validate_handmade");
   const std::vector<float> quad = {0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0};
   std::vector<fs::path> sources;

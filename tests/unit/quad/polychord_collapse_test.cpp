@@ -24,12 +24,8 @@ using testing::make_spiral_strip;
 using testing::make_subdivided_cube;
 using testing::make_torus;
 
-long long euler(const Mesh& m) { return summarize_topology(m, build_topology(m)).euler_characteristic; }
-
-void expect_valid(const Mesh& m) {
-  const ValidationReport r = validate(m);
-  EXPECT_TRUE(r.ok()) << (r.messages.empty() ? std::string() : r.messages.front());
-}
+using testing::euler;
+using testing::expect_valid;
 
 TEST(Polychord, FlatGridLosesWholeChordsWithZeroError) {
   const Mesh grid = make_quad_grid(6, 6);

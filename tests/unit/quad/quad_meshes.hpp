@@ -1,15 +1,28 @@
-// Small quad meshes made by the quad tests (one wedge per vertex, material 0).
+// Small quad meshes made by the quad tests (one wedge per vertex, material 0), and checks the tests share.
 #pragma once
+
+#include <gtest/gtest.h>
 
 #include <array>
 #include <cmath>
 #include <map>
 #include <numbers>
+#include <string>
 #include <vector>
 
 #include "lodforge/core/mesh.hpp"
+#include "lodforge/core/topology.hpp"
+#include "lodforge/core/validate.hpp"
 
 namespace lodforge::testing {
+
+inline long long euler(const Mesh& m) { return summarize_topology(m, build_topology(m)).euler_characteristic; }
+
+// validate() finds nothing (the first message otherwise).
+inline void expect_valid(const Mesh& m) {
+  const ValidationReport r = validate(m);
+  EXPECT_TRUE(r.ok()) << (r.messages.empty() ? std::string() : r.messages.front());
+}
 
 // Adds a vertex with one wedge (and the default material slot the first time).
 inline std::uint32_t add_point(Mesh& m, double x, double y, double z) {

@@ -169,35 +169,6 @@ TEST(AttributeCollapse, PriorityFromAColourChannelAndLockAtTheMaximum) {
   EXPECT_LT(r.mesh.vertex_count(), sphere.vertex_count() / 2);
 }
 
-// An open cylinder along z in [0, 4] bound to two bones: bone 0 below z = 1.6, bone 1 above z = 2.4, a linear
-// blend band between.
-Mesh make_two_bone_cylinder(int rings, int segments) {
-  Mesh m;
-  for (int i = 0; i <= rings; ++i) {
-    const float z = 4.0f * float(i) / float(rings);
-    for (int j = 0; j < segments; ++j) {
-      const float a = 2.0f * 3.14159265f * float(j) / float(segments);
-      m.add_vertex_with_wedge({{std::cos(a), std::sin(a), z}});
-      const float w1 = std::clamp((z - 1.6f) / 0.8f, 0.0f, 1.0f);
-      SkinInfluences s;
-      s.joints = {0, 1};
-      s.weights = {1.0f - w1, w1};
-      m.skin.push_back(s);
-    }
-  }
-  for (int i = 0; i < rings; ++i) {
-    for (int j = 0; j < segments; ++j) {
-      const auto a = static_cast<std::uint32_t>(i * segments + j);
-      const auto b = static_cast<std::uint32_t>(i * segments + (j + 1) % segments);
-      const auto c = b + static_cast<std::uint32_t>(segments), d = a + static_cast<std::uint32_t>(segments);
-      m.add_face({a, b, c});
-      m.add_face({a, c, d});
-    }
-  }
-  m.materials.push_back(MaterialSlot{.name = "default"});
-  return m;
-}
-
 int dominant(const SkinInfluences& s) {
   int best = 0;
   for (int i = 1; i < kMaxInfluences; ++i) best = s.weights[i] > s.weights[best] ? i : best;
@@ -205,7 +176,8 @@ int dominant(const SkinInfluences& s) {
 }
 
 TEST(AttributeCollapse, TwoBoneCylinderKeepsBonesApart) {
-  const Mesh cyl = make_two_bone_cylinder(40, 24);
+  // Bone 0 below z = 1.6, bone 1 above z = 2.4, a linear blend band between.
+  const Mesh cyl = testing::make_two_bone_cylinder(40, 24, 1.6f, 0.8f);
   for (double ratio : {0.2, 0.05}) {
     const SimplifyResult r = simplify(cyl, {.target_ratio = ratio});
     ASSERT_EQ(r.mesh.skin.size(), r.mesh.vertex_count());
