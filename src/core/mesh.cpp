@@ -80,16 +80,36 @@ Mesh triangulated(const Mesh& mesh, std::vector<std::uint32_t>* triangle_face) {
     triangle_face->reserve(tris);
   }
   for (std::size_t f = 0; f < mesh.face_count(); ++f) {
-    const std::uint32_t begin = mesh.face_offsets[f], k = mesh.face_size(f);
-    for (std::uint32_t i = 1; i + 1 < k; ++i) {
-      const std::uint32_t tri[3] = {mesh.corner_wedge[begin], mesh.corner_wedge[begin + i],
-                                    mesh.corner_wedge[begin + i + 1]};
+    for_each_face_triangle(mesh, f, [&](std::uint32_t c0, std::uint32_t c1, std::uint32_t c2) {
+      const std::uint32_t tri[3] = {mesh.corner_wedge[c0], mesh.corner_wedge[c1], mesh.corner_wedge[c2]};
       out.add_face(tri, 3, mesh.face_material.empty() ? 0 : mesh.face_material[f]);
       if (!mesh.face_group.empty()) out.face_group.push_back(mesh.face_group[f]);
       if (triangle_face) triangle_face->push_back(static_cast<std::uint32_t>(f));
-    }
+    });
   }
   return out;
+}
+
+std::vector<std::uint32_t> triangle_vertex_indices(const Mesh& mesh) {
+  std::vector<std::uint32_t> indices;
+  indices.reserve(3 * mesh.triangle_count());
+  for (std::size_t f = 0; f < mesh.face_count(); ++f) {
+    for_each_face_triangle(mesh, f, [&](std::uint32_t c0, std::uint32_t c1, std::uint32_t c2) {
+      indices.push_back(mesh.corner_vertex(c0));
+      indices.push_back(mesh.corner_vertex(c1));
+      indices.push_back(mesh.corner_vertex(c2));
+    });
+  }
+  return indices;
+}
+
+std::uint32_t triangulation_start(const Mesh& mesh, std::size_t f) {
+  if (mesh.face_size(f) != 4) return 0;
+  const std::uint32_t c = mesh.face_offsets[f];
+  auto at = [&](std::uint32_t i) { return to_double(mesh.positions[mesh.corner_vertex(c + i)]); };
+  const Vec3d d02 = at(2) - at(0), d13 = at(3) - at(1);
+  // Written so that NaN lengths keep the first corner.
+  return dot(d13, d13) < dot(d02, d02) ? 1 : 0;
 }
 
 }  // namespace lodforge

@@ -371,17 +371,7 @@ TriangleBvh make_triangle_bvh(const Mesh& mesh) {
   std::vector<Vec3d> positions;
   positions.reserve(mesh.vertex_count());
   for (const Vec3f& p : mesh.positions) positions.push_back(to_double(p));
-  std::vector<std::uint32_t> indices;
-  indices.reserve(3 * mesh.triangle_count());
-  for (std::size_t f = 0; f < mesh.face_count(); ++f) {
-    const std::uint32_t begin = mesh.face_offsets[f], k = mesh.face_size(f);
-    for (std::uint32_t i = 1; i + 1 < k; ++i) {
-      indices.push_back(mesh.corner_vertex(begin));
-      indices.push_back(mesh.corner_vertex(begin + i));
-      indices.push_back(mesh.corner_vertex(begin + i + 1));
-    }
-  }
-  return TriangleBvh(positions, indices);
+  return TriangleBvh(positions, triangle_vertex_indices(mesh));
 }
 
 }  // namespace lodforge

@@ -55,7 +55,7 @@ bool is_finite(const Vec3d& p) { return std::isfinite(p[0]) && std::isfinite(p[1
 // One mesh prepared for sampling and for being queried.
 struct Surface {
   std::vector<Vec3d> positions;
-  std::vector<std::uint32_t> indices;   // three per triangle, fan order of triangulated()
+  std::vector<std::uint32_t> indices;   // three per triangle, as triangulated() makes them
   std::vector<Vec3d> normals;           // unit face normal per triangle; zero when it has no area
   std::vector<double> area_prefix;      // triangles + 1 running sums of triangle areas
   std::uint32_t last_with_area = kInvalidIndex;
@@ -71,15 +71,7 @@ Surface make_surface(const Mesh& mesh) {
   Surface s;
   s.positions.reserve(mesh.vertex_count());
   for (const Vec3f& p : mesh.positions) s.positions.push_back(to_double(p));
-  s.indices.reserve(3 * mesh.triangle_count());
-  for (std::size_t f = 0; f < mesh.face_count(); ++f) {
-    const std::uint32_t begin = mesh.face_offsets[f], k = mesh.face_size(f);
-    for (std::uint32_t i = 1; i + 1 < k; ++i) {
-      s.indices.push_back(mesh.corner_vertex(begin));
-      s.indices.push_back(mesh.corner_vertex(begin + i));
-      s.indices.push_back(mesh.corner_vertex(begin + i + 1));
-    }
-  }
+  s.indices = triangle_vertex_indices(mesh);
 
   const std::size_t triangles = s.triangle_count();
   s.normals.assign(triangles, Vec3d{});

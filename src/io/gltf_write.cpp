@@ -342,13 +342,12 @@ std::vector<SlotGeometry> split_by_slot(const Mesh& mesh, std::size_t mesh_index
     g.wedges.erase(std::unique(g.wedges.begin(), g.wedges.end()), g.wedges.end());
     for (std::size_t i = 0; i < g.wedges.size(); ++i) local[g.wedges[i]] = static_cast<std::uint32_t>(i);
     for (const std::uint32_t f : faces[s]) {
-      // Fan from the first corner, as Mesh::triangulated() does.
-      const std::uint32_t first = mesh.face_offsets[f], end = mesh.face_offsets[f + 1];
-      for (std::uint32_t c = first + 1; c + 1 < end; ++c) {
-        g.indices.push_back(local[mesh.corner_wedge[first]]);
-        g.indices.push_back(local[mesh.corner_wedge[c]]);
-        g.indices.push_back(local[mesh.corner_wedge[c + 1]]);
-      }
+      // Quads along their shorter diagonal, as Mesh::triangulated() does.
+      for_each_face_triangle(mesh, f, [&](std::uint32_t c0, std::uint32_t c1, std::uint32_t c2) {
+        g.indices.push_back(local[mesh.corner_wedge[c0]]);
+        g.indices.push_back(local[mesh.corner_wedge[c1]]);
+        g.indices.push_back(local[mesh.corner_wedge[c2]]);
+      });
     }
   }
   return out;

@@ -110,7 +110,7 @@ struct Mesh {
   std::size_t corner_count() const { return corner_wedge.size(); }
   std::uint32_t face_size(std::size_t f) const { return face_offsets[f + 1] - face_offsets[f]; }
   std::uint32_t corner_vertex(std::size_t c) const { return wedge_vertex[corner_wedge[c]]; }
-  // Triangles after fan-triangulating every polygon.
+  // Triangles after triangulating every polygon (a k-gon gives k - 2).
   std::size_t triangle_count() const;
 
   // Append a face of `wedges.size()` corners; returns the new face index.
@@ -132,8 +132,27 @@ Bounds3 compute_bounds(const Mesh& mesh);
 // Area-weighted face normal direction (not normalised) of polygon f, by Newell's method.
 Vec3d face_normal_newell(const Mesh& mesh, std::size_t f);
 
-// Returns a mesh whose faces are all triangles (polygons fan-triangulated from their first corner); every
-// other array is shared unchanged. `triangle_face` (optional) receives the source face of each triangle.
+// How every part turns a polygon into triangles (glTF output, evaluation, the triangle engine and
+// triangulated() all see the same triangles): a quad splits along its shorter diagonal, the one through its
+// first corner on a tie, so a bent quad folds where a modeller expects and the fold does not depend on which
+// corner a file happened to list first; larger polygons fan from their first corner. Returns the corner
+// (0 or 1 for quads, else 0) that the fan of face f starts from.
+std::uint32_t triangulation_start(const Mesh& mesh, std::size_t f);
+
+// Calls emit(c0, c1, c2) with the corner offsets (into corner_wedge) of each triangle of face f, in the
+// face's winding, as triangulation_start() describes.
+template <class Emit>
+void for_each_face_triangle(const Mesh& mesh, std::size_t f, Emit&& emit) {
+  const std::uint32_t begin = mesh.face_offsets[f], k = mesh.face_size(f);
+  const std::uint32_t s = triangulation_start(mesh, f);
+  for (std::uint32_t i = 1; i + 1 < k; ++i) emit(begin + s, begin + (s + i) % k, begin + (s + i + 1) % k);
+}
+
+// Three vertex indices per triangle of the whole mesh, as for_each_face_triangle() makes them.
+std::vector<std::uint32_t> triangle_vertex_indices(const Mesh& mesh);
+
+// Returns a mesh whose faces are all triangles (as for_each_face_triangle() makes them); every other array
+// is shared unchanged. `triangle_face` (optional) receives the source face of each triangle.
 Mesh triangulated(const Mesh& mesh, std::vector<std::uint32_t>* triangle_face = nullptr);
 
 }  // namespace lodforge

@@ -460,6 +460,25 @@ TEST(GltfModes, TriangleFanIsConvertedWithAWarning) {
   EXPECT_TRUE(has_warning(a, "triangle fan converted to 2 triangles"));
 }
 
+TEST(GltfWrite, QuadsAreWrittenAlongTheirShorterDiagonal) {
+  // Quad 0 1 7 2 (numbers x + 2y + 4z): the diagonal 1-2 (length^2 2) is shorter than 0-7 (length^2 3), so the
+  // triangles are (1, 7, 2) and (1, 2, 0), not the fan (0, 1, 7), (0, 7, 2) from the first corner.
+  Asset a;
+  a.format = Format::obj;
+  Mesh& m = a.meshes.emplace_back();
+  const Vec3f corners[4] = {{{0, 0, 0}}, {{1, 0, 0}}, {{1, 1, 1}}, {{0, 1, 0}}};
+  std::uint32_t w[4];
+  for (int i = 0; i < 4; ++i) w[i] = m.add_vertex_with_wedge(corners[i]);
+  m.add_face(w, 4);
+  m.materials.push_back({});
+  const fs::path dir = temp_dir("gltf_quad_diagonal");
+  save_asset(a, dir / "quad.glb");
+  const Asset back = load_asset(dir / "quad.glb");
+  ASSERT_EQ(back.meshes.size(), 1u);
+  using T = std::array<std::uint32_t, 3>;
+  EXPECT_EQ(triangles_by_vertex_position(back.meshes[0]), (std::vector<T>{{1, 7, 2}, {1, 2, 0}}));
+}
+
 TEST(GltfModes, PointsPrimitiveIsCarriedUnchanged) {
   TinyDoc d;
   d.primitive({{"attributes", {{"POSITION", d.positions(kQuad)}}}, {"indices", d.indices16({0, 1, 2, 2, 1, 3})}});

@@ -1,0 +1,85 @@
+// How polygons become triangles: one rule (Mesh::triangulated, triangle_vertex_indices, the glTF writer and
+// the evaluator all follow for_each_face_triangle).
+#include "lodforge/core/mesh.hpp"
+
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+namespace lodforge {
+namespace {
+
+// One face over fresh vertices at `corners`, in that order.
+Mesh single_face(const std::vector<Vec3f>& corners) {
+  Mesh m;
+  std::vector<std::uint32_t> w;
+  for (const Vec3f& p : corners) w.push_back(m.add_vertex_with_wedge(p));
+  m.add_face(w.data(), w.size());
+  return m;
+}
+
+std::vector<std::array<std::uint32_t, 3>> triangles_of(const Mesh& m) {
+  const std::vector<std::uint32_t> idx = triangle_vertex_indices(m);
+  std::vector<std::array<std::uint32_t, 3>> out;
+  for (std::size_t i = 0; i + 2 < idx.size(); i += 3) out.push_back({idx[i], idx[i + 1], idx[i + 2]});
+  return out;
+}
+
+using Tris = std::vector<std::array<std::uint32_t, 3>>;
+
+TEST(Triangulation, QuadSplitsAlongItsShorterDiagonal) {
+  // A rhombus long along x: corners 1 and 3 are the close pair, so the split is 1-3.
+  const Mesh rhombus = single_face({{{-2, 0, 0}}, {{0, -1, 0}}, {{2, 0, 0}}, {{0, 1, 0}}});
+  EXPECT_EQ(triangulation_start(rhombus, 0), 1u);
+  EXPECT_EQ(triangles_of(rhombus), (Tris{{1, 2, 3}, {1, 3, 0}}));
+  // The same rhombus listed from another corner: the same diagonal, so the same fold.
+  const Mesh rotated = single_face({{{0, -1, 0}}, {{2, 0, 0}}, {{0, 1, 0}}, {{-2, 0, 0}}});
+  EXPECT_EQ(triangulation_start(rotated, 0), 0u);
+  EXPECT_EQ(triangles_of(rotated), (Tris{{0, 1, 2}, {0, 2, 3}}));
+}
+
+TEST(Triangulation, SquareTiesAndPolygonsFanFromTheFirstCorner) {
+  const Mesh square = single_face({{{0, 0, 0}}, {{1, 0, 0}}, {{1, 1, 0}}, {{0, 1, 0}}});
+  EXPECT_EQ(triangles_of(square), (Tris{{0, 1, 2}, {0, 2, 3}}));
+  // A pentagon whose 1-3 chord is short still fans from corner 0: only quads choose.
+  const Mesh pentagon = single_face({{{-2, 0, 0}}, {{0, -1, 0}}, {{2, 0, 0}}, {{0, 1, 0}}, {{-1, 1, 0}}});
+  EXPECT_EQ(triangulation_start(pentagon, 0), 0u);
+  EXPECT_EQ(triangles_of(pentagon), (Tris{{0, 1, 2}, {0, 2, 3}, {0, 3, 4}}));
+  const Mesh triangle = single_face({{{0, 0, 0}}, {{1, 0, 0}}, {{0, 1, 0}}});
+  EXPECT_EQ(triangles_of(triangle), (Tris{{0, 1, 2}}));
+}
+
+TEST(Triangulation, NonFinitePositionsKeepTheFirstCorner) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const Mesh m = single_face({{{nan, 0, 0}}, {{0, -1, 0}}, {{2, 0, 0}}, {{0, 1, 0}}});
+  EXPECT_EQ(triangulation_start(m, 0), 0u);
+}
+
+TEST(Triangulation, TriangulatedMeshUsesTheSameTrianglesAndKeepsWinding) {
+  // A bent quad (a fold along 1-3) next to a flat one; both keep the +z winding of their corners.
+  Mesh m;
+  const Vec3f p[6] = {{{-2, 0, 0}}, {{0, -1, 0}}, {{2, 0, 1}}, {{0, 1, 0}}, {{4, -1, 0}}, {{4, 1, 0}}};
+  std::uint32_t w[6];
+  for (int i = 0; i < 6; ++i) w[i] = m.add_vertex_with_wedge(p[i]);
+  m.add_face({w[0], w[1], w[2], w[3]});
+  m.add_face({w[1], w[4], w[5], w[2]});
+  std::vector<std::uint32_t> source;
+  const Mesh t = triangulated(m, &source);
+  ASSERT_EQ(t.face_count(), 4u);
+  EXPECT_EQ(source, (std::vector<std::uint32_t>{0, 0, 1, 1}));
+  const std::vector<std::uint32_t> idx = triangle_vertex_indices(m);
+  ASSERT_EQ(idx.size(), 12u);
+  for (std::size_t f = 0; f < t.face_count(); ++f) {
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(t.corner_vertex(t.face_offsets[f] + k), idx[3 * f + k]);
+    const Vec3d a = to_double(t.positions[idx[3 * f]]), b = to_double(t.positions[idx[3 * f + 1]]),
+                c = to_double(t.positions[idx[3 * f + 2]]);
+    EXPECT_GT(cross(b - a, c - a)[2], 0.0) << "triangle " << f;
+  }
+  EXPECT_EQ(t.triangle_count(), m.triangle_count());
+}
+
+}  // namespace
+}  // namespace lodforge
