@@ -157,7 +157,13 @@ class UvLocator {
     for (std::size_t i = 0; i < n; ++i) {
       const std::uint32_t* w = &t.wedge_index[3 * i];
       Triangle tri{{uv[w[0]], uv[w[1]], uv[w[2]]}, chart[w[0]]};
-      if (!(uv_area2(tri.p[0], tri.p[1], tri.p[2]) != 0.0)) continue;
+      if (!(uv_area2(tri.p[0], tri.p[1], tri.p[2]) != 0.0)) {
+        if (std::isfinite(uv_area2(tri.p[0], tri.p[1], tri.p[2]))) {
+          if (unoriented_by_chart_.size() <= tri.chart) unoriented_by_chart_.resize(std::size_t{tri.chart} + 1);
+          unoriented_by_chart_[tri.chart].push_back(tri);
+        }
+        continue;
+      }
       int x0 = 1 << 30, y0 = 1 << 30, x1 = -1, y1 = -1;
       for (const Vec2f& p : tri.p) {
         const auto [cx, cy] = cell(p[0], p[1]);
@@ -165,6 +171,8 @@ class UvLocator {
       }
       const auto id = static_cast<std::uint32_t>(tris_.size());
       tris_.push_back(tri);
+      if (by_chart_.size() <= tri.chart) by_chart_.resize(std::size_t{tri.chart} + 1);
+      by_chart_[tri.chart].push_back(id);
       for (int y = y0; y <= y1; ++y) {
         for (int x = x0; x <= x1; ++x) bins_[static_cast<std::size_t>(y) * cells_ + static_cast<std::size_t>(x)].push_back(id);
       }
@@ -177,6 +185,34 @@ class UvLocator {
     for_containing(p, [&](const Triangle& t) { out.push_back(t.chart); });
     std::sort(out.begin(), out.end());
     out.erase(std::unique(out.begin(), out.end()), out.end());
+  }
+  // The UV orientation (+1 or -1) of the original triangle of one of `charts` (sorted) nearest to p in UV
+  // space (ties: the lowest triangle id); 0 when those charts have no triangle with UV area. For a point no
+  // triangle of the charts contains (a chord across a concave outline, a strip of zero-area UV triangles).
+  double nearest_orientation(const Vec2f& p, const std::vector<std::uint32_t>& charts) const {
+    double best = INFINITY, sign = 0.0;
+    for (std::uint32_t c : charts) {
+      if (c >= by_chart_.size()) continue;
+      for (std::uint32_t id : by_chart_[c]) {
+        const double d = distance2(tris_[id], p);
+        if (d < best) {
+          best = d;
+          sign = uv_area2(tris_[id].p[0], tris_[id].p[1], tris_[id].p[2]) > 0.0 ? 1.0 : -1.0;
+        }
+      }
+    }
+    return sign;
+  }
+  // Whether an original triangle of one of `charts` with zero UV area (a segment or a point in UV space)
+  // passes within `radius` of p.
+  bool near_unoriented(const Vec2f& p, const std::vector<std::uint32_t>& charts, double radius) const {
+    for (std::uint32_t c : charts) {
+      if (c >= unoriented_by_chart_.size()) continue;
+      for (const Triangle& t : unoriented_by_chart_[c]) {
+        if (distance2(t, p) <= radius * radius) return true;
+      }
+    }
+    return false;
   }
   // Whether some original triangle of one of `charts` (sorted) containing p has UV orientation `sign`, and
   // whether any of them contains p at all.
@@ -211,6 +247,24 @@ class UvLocator {
       if (contains(tris_[id], p, tol)) f(tris_[id]);
     }
   }
+  // Squared distance from p to triangle t in UV space (0 inside).
+  static double distance2(const Triangle& t, const Vec2f& p) {
+    const double a = uv_area2(t.p[0], t.p[1], t.p[2]);
+    bool inside = true;
+    double best = INFINITY;
+    for (int i = 0; i < 3; ++i) {
+      const Vec2f& q = t.p[i];
+      const Vec2f& r = t.p[(i + 1) % 3];
+      inside &= a != 0.0 && uv_area2(q, r, p) * a >= 0.0;
+      const double ex = double{r[0]} - q[0], ey = double{r[1]} - q[1];
+      const double px = double{p[0]} - q[0], py = double{p[1]} - q[1];
+      const double len2 = ex * ex + ey * ey;
+      const double u = len2 > 0.0 ? std::clamp((px * ex + py * ey) / len2, 0.0, 1.0) : 0.0;
+      const double dx = px - u * ex, dy = py - u * ey;
+      best = std::min(best, dx * dx + dy * dy);
+    }
+    return inside ? 0.0 : best;
+  }
   static bool contains(const Triangle& t, const Vec2f& p, double tol) {
     const double a = uv_area2(t.p[0], t.p[1], t.p[2]);
     const double s = a > 0 ? 1.0 : -1.0;
@@ -229,7 +283,14 @@ class UvLocator {
   std::size_t cells_ = 0;
   std::vector<std::vector<std::uint32_t>> bins_;
   std::vector<Triangle> tris_;
+  std::vector<std::vector<std::uint32_t>> by_chart_;  // triangle ids of each chart
+  std::vector<std::vector<Triangle>> unoriented_by_chart_;  // zero-area UV triangles of each chart
 };
+
+double longest_edge(const Vec2f& a, const Vec2f& b, const Vec2f& c) {
+  auto len = [](const Vec2f& p, const Vec2f& q) { return std::hypot(double{q[0]} - p[0], double{q[1]} - p[1]); };
+  return std::max({len(a, b), len(b, c), len(c, a)});
+}
 
 // Sander 2001 stretch of triangle (q, uv); empty when its UV area is zero.
 struct Stretch {
@@ -368,6 +429,7 @@ AttributeEvalResult evaluate_attributes(const Mesh& original_in, const Mesh& sim
 
   // UV stretch, flips and chart spans, per set both meshes have.
   const std::vector<std::uint32_t> chart = uv_charts(original);
+  std::optional<TriangleBvh> original_bvh;  // built when a triangle first needs its surface place
   for (std::size_t set = 0; set < std::min(original.uvs.size(), simplified.uvs.size()); ++set) {
     const std::vector<Vec2f>& ua = original.uvs[set];
     const std::vector<Vec2f>& ub = simplified.uvs[set];
@@ -380,12 +442,6 @@ AttributeEvalResult evaluate_attributes(const Mesh& original_in, const Mesh& sim
     rep.stretch_max_linf = linf;
     rep.stretch_ratio = rep.stretch_original > 0.0 ? l2 / rep.stretch_original : 0.0;
 
-    // Chart orientation: sign of each chart's summed signed UV area.
-    std::map<std::uint32_t, double> orientation;
-    for (std::size_t i = 0; i < a.count(); ++i) {
-      const std::uint32_t* w = &a.wedge_index[3 * i];
-      orientation[chart[w[0]]] += uv_area2(ua[w[0]], ua[w[1]], ua[w[2]]);
-    }
     // Exact UV matches name their charts directly (vertices that never moved keep their UVs bit for bit).
     std::map<std::pair<float, float>, std::vector<std::uint32_t>> exact;
     for (std::uint32_t w = 0; w < original.wedge_count(); ++w) exact[{ua[w][0], ua[w][1]}].push_back(chart[w]);
@@ -431,7 +487,10 @@ AttributeEvalResult evaluate_attributes(const Mesh& original_in, const Mesh& sim
         continue;
       }
       // Flipped: the original triangles of those charts under the LOD triangle's UV centroid all have the
-      // other orientation (charts may hold mirrored parts, so the chart's overall sign is not enough).
+      // other orientation (charts may hold mirrored parts, so the chart's overall sign is not enough); where
+      // none lies under it, the nearest one in UV space has, unless the centroid lies on a strip of
+      // zero-area UV triangles of those charts (within a quarter of the triangle's longest UV edge): the
+      // original has no orientation there, so the triangle counts as unoriented.
       const double area = uv_area2(ub[w[0]], ub[w[1]], ub[w[2]]);
       const Vec2f centroid{{(ub[w[0]][0] + ub[w[1]][0] + ub[w[2]][0]) / 3.0f, (ub[w[0]][1] + ub[w[1]][1] + ub[w[2]][1]) / 3.0f}};
       if (!(area != 0.0)) {
@@ -439,12 +498,32 @@ AttributeEvalResult evaluate_attributes(const Mesh& original_in, const Mesh& sim
         continue;
       }
       const auto [found, agrees] = locator.orientation_at(centroid, common, area);
+      bool flipped = false;
       if (found) {
-        rep.flipped += !agrees;
+        flipped = !agrees;
+      } else if (locator.near_unoriented(centroid, common, 0.25 * longest_edge(ub[w[0]], ub[w[1]], ub[w[2]]))) {
+        ++rep.unoriented;
       } else {
-        bool chart_agrees = false;
-        for (std::uint32_t c : common) chart_agrees |= area * orientation[c] > 0.0;
-        rep.flipped += !chart_agrees;
+        flipped = locator.nearest_orientation(centroid, common) * area < 0.0;
+      }
+      if (!flipped) continue;
+      // Where a chart is folded onto itself (mirrored halves that meet), a LOD triangle beside the fold may
+      // have its UV centroid just across it while its place on the surface has its winding: the original
+      // triangle nearest to its 3-D centroid, in the shared charts, with that winding clears it.
+      if (!original_bvh) original_bvh.emplace(a.positions, a.vertex_index);
+      const std::uint32_t* v = &b.vertex_index[3 * i];
+      const BvhHit hit =
+          original_bvh->closest_point((b.positions[v[0]] + b.positions[v[1]] + b.positions[v[2]]) * (1.0 / 3.0));
+      bool surface_agrees = false;
+      if (hit.triangle != kInvalidIndex) {
+        const std::uint32_t* wo = &a.wedge_index[3 * std::size_t{hit.triangle}];
+        surface_agrees = std::binary_search(common.begin(), common.end(), chart[wo[0]]) &&
+                         uv_area2(ua[wo[0]], ua[wo[1]], ua[wo[2]]) * area > 0.0;
+      }
+      if (surface_agrees) {
+        ++rep.fold;
+      } else {
+        ++rep.flipped;
       }
     }
     result.uv_sets.push_back(rep);

@@ -14,9 +14,15 @@
 //   original layout, exact UV matches first). A triangle spans charts when its located corners share none
 //   (a corner in no chart, `outside`, constrains nothing); it is flipped when the sign of its UV area
 //   differs from that of every original triangle of the shared charts under its UV centroid (or, when
-//   none is there, from every shared chart's overall orientation). Overlapping charts (mirrored or stacked
-//   UVs) make both counts lenient where they overlap, never stricter. Triangles with zero UV area are counted
-//   apart (degenerate, with the original's count for comparison).
+//   none is there, from that of the shared charts' original triangle nearest to the centroid in UV space:
+//   a chart may hold mirrored parts, so its overall orientation says nothing about one place). A triangle
+//   whose centroid lies in no such triangle but on a strip of the charts' zero-area UV triangles (within a
+//   quarter of its longest UV edge) has no original orientation to compare with: `unoriented`, not flipped.
+//   A triangle flipped by that UV test whose surface place agrees with it (the original triangle nearest to
+//   its 3-D centroid lies in the shared charts and has its UV orientation) sits beside a fold of a chart onto
+//   itself (mirrored halves that meet in UV space): `fold`, not flipped. Overlapping charts (mirrored or
+//   stacked UVs) make both counts lenient where they overlap, never stricter. Triangles with zero UV area are
+//   counted apart (degenerate, with the original's count for comparison).
 // - skinning: the Mesh model carries joint indices and weights but no skeleton or animation, so poses are
 //   synthetic: the bind pose, then for each of the `poses` joints with the largest total weight a rotation of
 //   `pose_angle_deg` about that joint's weighted centroid (axis perpendicular to the centroid's offset from
@@ -55,6 +61,8 @@ struct UvSetReport {
   std::size_t spanning = 0;
   std::size_t outside = 0;  // LOD wedges whose UV lies in no original chart (not counted as spans)
   std::size_t degenerate = 0, degenerate_original = 0;  // triangles with zero UV area (not counted as flips)
+  std::size_t unoriented = 0;  // over a zero-area UV strip of their chart: no orientation to compare (no flips)
+  std::size_t fold = 0;        // flipped by their UV place, not by their surface place (not counted as flips)
 };
 
 struct PoseError {

@@ -169,8 +169,10 @@ class CollapseMesh {
   }
   // Cost and placement of collapsing edge (u, v), u < v, rule not forbidden. Thread-safe (reads only).
   // Placement: the surface quadric's minimiser where it is well conditioned, else the minimiser with the
-  // rubber band added (or the best point of the edge); a locked endpoint stays where it is.
-  Evaluation evaluate(std::uint32_t u, std::uint32_t v) const;
+  // rubber band added (or the best point of the edge); a locked endpoint stays where it is. Placement and
+  // error never depend on the attribute and skin terms, so without `with_cost` they are left out (cost is
+  // then the surface's alone): for callers that only need where the vertex goes and how far.
+  Evaluation evaluate(std::uint32_t u, std::uint32_t v, bool with_cost = true) const;
   // Topology, fold and seam tests of collapsing (u, v) to `x`; chooses which endpoint survives. Reads only.
   Check check(std::uint32_t u, std::uint32_t v, const Vec3d& x, Scratch& scratch) const;
   // Applies a checked collapse in two steps: reserve() makes room for the survivor's merged face list (it

@@ -54,7 +54,8 @@ struct AttributeWeights {
 // Where the attributes of a moved vertex come from.
 enum class AttributePlacement {
   optimal,  // the attribute quadric's minimiser at the new position, clamped (unit normals, colours in [0, 1],
-            // UVs on the collapsed edge's UV segment, inside the chart); tangents recomputed
+            // UVs on the collapsed edge's UV segment, inside the chart; at a seam vertex, where that segment
+            // may be a chord of the chart's outline, the nearer end's UV); tangents recomputed
   keep,     // the surviving wedges' values unchanged (all LODs can share one vertex buffer)
 };
 

@@ -2,7 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
+#include <vector>
 
 #include "../simplify/attribute_fixtures.hpp"
 #include "test_support.hpp"
@@ -92,6 +94,65 @@ TEST(AttributeEval, CountsTrianglesSpanningCharts) {
   EXPECT_EQ(ok.uv_flipped(), 0u);
   const AttributeEvalResult r = evaluate_attributes(cube, broken, kFast);
   EXPECT_EQ(r.uv_spanning(), 1u);
+}
+
+// A flat mesh (z = 0) from 3-D corners, one wedge per corner with the given UVs.
+Mesh uv_mesh(const std::vector<Vec3f>& positions, const std::vector<std::array<std::uint32_t, 3>>& faces,
+             const std::vector<std::array<Vec2f, 3>>& uvs) {
+  Mesh m;
+  m.positions = positions;
+  m.uvs.resize(1);
+  for (std::size_t f = 0; f < faces.size(); ++f) {
+    std::uint32_t w[3];
+    for (int i = 0; i < 3; ++i) {
+      w[i] = static_cast<std::uint32_t>(m.wedge_vertex.size());
+      m.wedge_vertex.push_back(faces[f][static_cast<std::size_t>(i)]);
+      m.uvs[0].push_back(uvs[f][static_cast<std::size_t>(i)]);
+    }
+    m.add_face(w, 3);
+  }
+  m.materials.push_back({});
+  return m;
+}
+
+TEST(AttributeEval, TrianglesOverZeroAreaUvStripsAreUnorientedNotFlipped) {
+  // A quad whose UVs collapse onto the segment (0,0)-(1,0): the original has no UV orientation there.
+  const std::vector<Vec3f> p = {{{0, 0, 0}}, {{1, 0, 0}}, {{1, 1, 0}}, {{0, 1, 0}}};
+  const Vec2f a{{0, 0}}, b{{1, 0}};
+  const Mesh strip = uv_mesh(p, {{0, 1, 2}, {0, 2, 3}}, {{a, b, b}, {a, b, a}});
+  // The LOD opens the strip up slightly, one triangle each way round.
+  const Vec2f c{{1, 0.01f}}, d{{0, 0.01f}};
+  const Mesh opened = uv_mesh(p, {{0, 1, 2}, {0, 2, 3}}, {{a, b, c}, {a, c, d}});
+  const AttributeEvalResult r = evaluate_attributes(strip, opened, kFast);
+  ASSERT_EQ(r.uv_sets.size(), 1u);
+  EXPECT_EQ(r.uv_sets[0].flipped, 0u);
+  EXPECT_EQ(r.uv_sets[0].unoriented, 2u);
+  EXPECT_EQ(r.uv_sets[0].degenerate_original, 2u);
+}
+
+TEST(AttributeEval, TrianglesBesideAFoldedChartKeepTheirSurfaceWinding) {
+  // One chart folded onto itself at x = 1: the part x in [1, 1.5] maps back onto u in [0.5, 1], mirrored.
+  const std::vector<Vec3f> p = {{{0, 0, 0}}, {{1, 0, 0}}, {{1, 1, 0}}, {{0, 1, 0}}, {{1.5f, 0, 0}}, {{1.5f, 1, 0}}};
+  const Vec2f uv[6] = {{{0, 0}}, {{1, 0}}, {{1, 1}}, {{0, 1}}, {{0.5f, 0}}, {{0.5f, 1}}};
+  auto tri = [&](std::uint32_t i, std::uint32_t j, std::uint32_t k) {
+    return std::array<Vec2f, 3>{uv[i], uv[j], uv[k]};
+  };
+  const Mesh folded = uv_mesh(p, {{0, 1, 2}, {0, 2, 3}, {1, 4, 5}, {1, 5, 2}},
+                              {tri(0, 1, 2), tri(0, 2, 3), tri(1, 4, 5), tri(1, 5, 2)});
+  // The mirrored part keeps its winding on the surface, but its UVs reach past the fold's image (u < 0.5),
+  // where only the other half lies in UV space.
+  const Vec2f e{{0.1f, 0}}, f{{0.1f, 1}};
+  const Mesh lod = uv_mesh(p, {{0, 1, 2}, {0, 2, 3}, {1, 4, 5}, {1, 5, 2}},
+                           {tri(0, 1, 2), tri(0, 2, 3), {uv[1], e, f}, {uv[1], f, uv[2]}});
+  const AttributeEvalResult r = evaluate_attributes(folded, lod, kFast);
+  ASSERT_EQ(r.uv_sets.size(), 1u);
+  EXPECT_EQ(r.uv_sets[0].flipped, 0u);
+  EXPECT_EQ(r.uv_sets[0].fold, 1u);
+  EXPECT_EQ(r.uv_sets[0].spanning, 0u);
+  // A triangle turned over both in UV space and on the surface (where only one half lies): a flip.
+  const Mesh turned = uv_mesh(p, {{0, 1, 2}, {0, 2, 3}, {1, 4, 5}, {1, 5, 2}},
+                              {tri(0, 1, 2), tri(0, 3, 2), tri(1, 4, 5), tri(1, 5, 2)});
+  EXPECT_EQ(evaluate_attributes(folded, turned, kFast).uv_flipped(), 1u);
 }
 
 TEST(AttributeEval, SkinnedPosesExposeWrongWeights) {

@@ -285,6 +285,39 @@ TEST(AttributeCollapse, PermissiveCrossesHardEdgesButNotUvSeams) {
   EXPECT_EQ(c.flipped, 0u);
 }
 
+// Exporters round the normal of one smooth vertex differently per render vertex: such wedges are one wedge,
+// no hard edge, so the mesh simplifies as if it had one wedge per vertex; a real hard edge still holds.
+TEST(AttributeCollapse, NormalsEqualUpToRoundingAreNoSeam) {
+  Mesh smooth = simplify_test::make_bumpy_sphere(24, 48);
+  add_vertex_normals(smooth);
+  // One wedge per corner, normals nudged by about 1e-6 rad, differently at each corner.
+  Mesh split;
+  split.positions = smooth.positions;
+  split.materials = smooth.materials;
+  for (std::size_t f = 0; f < smooth.face_count(); ++f) {
+    std::uint32_t w[3];
+    for (int i = 0; i < 3; ++i) {
+      const std::uint32_t c = smooth.face_offsets[f] + static_cast<std::uint32_t>(i);
+      split.wedge_vertex.push_back(smooth.corner_vertex(c));
+      Vec3f n = smooth.normals[smooth.corner_wedge[c]];
+      n[i] += 1e-6f * static_cast<float>(1 + (f + static_cast<std::size_t>(i)) % 3);
+      split.normals.push_back(n);
+      w[i] = static_cast<std::uint32_t>(split.wedge_vertex.size() - 1);
+    }
+    split.add_face(w, 3);
+  }
+  const SimplifyResult a = simplify(smooth, {.target_ratio = 0.1});
+  const SimplifyResult b = simplify(split, {.target_ratio = 0.1});
+  EXPECT_EQ(b.stop_reason, StopReason::target_reached);
+  EXPECT_EQ(b.triangles_after, a.triangles_after);
+  EXPECT_NEAR(b.error_bound_rel, a.error_bound_rel, 0.05 * a.error_bound_rel);
+  EXPECT_EQ(b.mesh.wedge_count(), b.mesh.vertex_count());  // one wedge per vertex left
+
+  // Face normals several degrees apart are hard edges: every vertex of the flat-shaded sphere stays a seam.
+  const SimplifyResult hard = simplify(make_flat_shaded_sphere(), {.target_ratio = 0.25});
+  EXPECT_EQ(hard.stop_reason, StopReason::no_valid_collapse);
+}
+
 TEST(AttributeCollapse, KeepModeCopiesSurvivorAttributes) {
   Mesh m = simplify_test::make_bumpy_sphere(24, 48);
   add_vertex_normals(m);
