@@ -107,9 +107,7 @@ std::uint32_t triangulation_start(const Mesh& mesh, std::size_t f) {
   if (mesh.face_size(f) != 4) return 0;
   const std::uint32_t c = mesh.face_offsets[f];
   auto at = [&](std::uint32_t i) { return to_double(mesh.positions[mesh.corner_vertex(c + i)]); };
-  const Vec3d d02 = at(2) - at(0), d13 = at(3) - at(1);
-  // Written so that NaN lengths keep the first corner.
-  return dot(d13, d13) < dot(d02, d02) ? 1 : 0;
+  return quad_triangulation_start(at(0), at(1), at(2), at(3));
 }
 
 }  // namespace lodforge

@@ -511,7 +511,7 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
     if (delta_euler != 0) result.failure = WeldFailure::euler;
   }
   reset_all();
-  if (!result.ok()) {
+  if (!result.ok() || options.dry_run) {
     rollback(undo);
     result.survivors.clear();
     return result;

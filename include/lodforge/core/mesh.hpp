@@ -138,6 +138,11 @@ Vec3d face_normal_newell(const Mesh& mesh, std::size_t f);
 // corner a file happened to list first; larger polygons fan from their first corner. Returns the corner
 // (0 or 1 for quads, else 0) that the fan of face f starts from.
 std::uint32_t triangulation_start(const Mesh& mesh, std::size_t f);
+// The same rule for a quad given by its corner positions (for meshes held in another form).
+inline std::uint32_t quad_triangulation_start(const Vec3d& p0, const Vec3d& p1, const Vec3d& p2, const Vec3d& p3) {
+  const Vec3d d02 = p2 - p0, d13 = p3 - p1;
+  return dot(d13, d13) < dot(d02, d02) ? 1 : 0;  // written so that NaN lengths keep the first corner
+}
 
 // Calls emit(c0, c1, c2) with the corner offsets (into corner_wedge) of each triangle of face f, in the
 // face's winding, as triangulation_start() describes.

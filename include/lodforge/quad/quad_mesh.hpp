@@ -41,6 +41,8 @@ const char* weld_failure_name(WeldFailure f);
 
 struct WeldOptions {
   double max_flip_angle_deg = 60.0;  // a face normal may turn by at most this much (< 90)
+  // Only check: the weld is rolled back even when valid (the result says whether it would have been made).
+  bool dry_run = false;
 };
 
 struct WeldResult {
@@ -70,6 +72,13 @@ class QuadMesh {
   bool locked(std::uint32_t v) const { return locked_[v] != 0; }
   void lock(std::uint32_t v) { locked_[v] = 1; }
   const Vec3d& position(std::uint32_t v) const { return positions_[v]; }
+  // Whether a weld has moved vertex v (else it is where the input had it).
+  bool moved(std::uint32_t v) const { return moved_[v] != 0; }
+  // Puts vertex v at p without any check (surface fitting checks its own steps); it counts as moved.
+  void set_position(std::uint32_t v, const Vec3d& p) {
+    positions_[v] = p;
+    moved_[v] = 1;
+  }
   std::size_t triangle_count() const { return triangles_; }  // after fan triangulation
   std::size_t triangle_faces() const { return triangle_faces_; }  // faces with three corners
   FaceKindCounts face_kinds() const;

@@ -211,6 +211,25 @@ TEST(Weld, RefusesIslandsWithTwoLockedVertices) {
   EXPECT_EQ(qm.position(5)[1], 1.0);
 }
 
+TEST(Weld, DryRunChecksWithoutChangingTheMesh) {
+  const Mesh grid = make_quad_grid(3, 3);
+  QuadMesh qm(grid);
+  const Mesh before = qm.to_mesh(grid);
+  WeldOptions check;
+  check.dry_run = true;
+  // A valid rung collapse says so and leaves everything as it was ...
+  const WeldResult ok = qm.weld({{5, 9}}, {Vec3d{{1.5, 1.5, 0}}}, check);
+  EXPECT_TRUE(ok.ok()) << weld_failure_name(ok.failure);
+  EXPECT_EQ(qm.triangle_count(), 18u);
+  EXPECT_FALSE(qm.moved(5));
+  const Mesh after = qm.to_mesh(grid);
+  EXPECT_EQ(after.positions, before.positions);
+  EXPECT_EQ(after.corner_wedge, before.corner_wedge);
+  // ... and an invalid one reports the same failure as a real weld would.
+  EXPECT_EQ(qm.weld({{5, 6}}, {Vec3d{{1.5, 1, 5}}}, check).failure,
+            qm.weld({{5, 6}}, {Vec3d{{1.5, 1, 5}}}).failure);
+}
+
 TEST(Weld, RefusesBadIslands) {
   const Mesh grid = make_quad_grid(3, 3);
   QuadMesh qm(grid);
