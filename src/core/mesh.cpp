@@ -1,5 +1,6 @@
 #include "lodforge/core/mesh.hpp"
 
+#include <algorithm>
 #include <cassert>
 
 namespace lodforge {
@@ -86,6 +87,78 @@ Mesh triangulated(const Mesh& mesh, std::vector<std::uint32_t>* triangle_face) {
       if (!mesh.face_group.empty()) out.face_group.push_back(mesh.face_group[f]);
       if (triangle_face) triangle_face->push_back(static_cast<std::uint32_t>(f));
     });
+  }
+  return out;
+}
+
+Mesh compact_vertices_and_wedges(const Mesh& m, std::vector<std::uint32_t>& wedge_map,
+                                 std::vector<std::uint32_t>& vertices, const AttributeOverrides& overrides) {
+  const std::size_t nw = m.wedge_count(), nv = m.vertex_count();
+  const std::vector<std::uint32_t>& wedge_vertex = overrides.wedge_vertex ? *overrides.wedge_vertex : m.wedge_vertex;
+  std::vector<std::uint32_t> vertex_map(nv, kInvalidIndex);
+  std::vector<std::uint32_t> wedges;  // kept ids, ascending
+  for (std::uint32_t w = 0; w < nw; ++w) {
+    if (wedge_map[w] == kInvalidIndex) continue;
+    wedge_map[w] = static_cast<std::uint32_t>(wedges.size());
+    wedges.push_back(w);
+    vertex_map[wedge_vertex[w]] = 0;
+  }
+  vertices.clear();
+  for (std::uint32_t v = 0; v < nv; ++v) {
+    if (vertex_map[v] == kInvalidIndex) continue;
+    vertex_map[v] = static_cast<std::uint32_t>(vertices.size());
+    vertices.push_back(v);
+  }
+
+  Mesh out;
+  out.name = m.name;
+  out.materials = m.materials;
+  out.groups = m.groups;
+  out.formats = m.formats;
+  out.morph_default_weights = m.morph_default_weights;
+  out.positions.reserve(vertices.size());
+  for (std::uint32_t v : vertices) out.positions.push_back(m.positions[v]);
+  auto per_vertex = [&](const auto& in, auto& dst) {
+    if (in.size() != nv) return;
+    dst.reserve(vertices.size());
+    for (std::uint32_t v : vertices) dst.push_back(in[v]);
+  };
+  per_vertex(overrides.skin ? *overrides.skin : m.skin, out.skin);
+  per_vertex(m.priority, out.priority);
+  auto per_wedge = [&](const auto& in, auto& dst, std::size_t components) {
+    if (in.size() != nw * components) return;
+    dst.reserve(wedges.size() * components);
+    for (std::uint32_t w : wedges) {
+      for (std::size_t i = 0; i < components; ++i) dst.push_back(in[w * components + i]);
+    }
+  };
+  // The override of set i when there is one.
+  auto set_of = [](const auto* sets, const auto& own, std::size_t i) -> const auto& {
+    return sets && i < sets->size() && !(*sets)[i].empty() ? (*sets)[i] : own[i];
+  };
+  out.wedge_vertex.reserve(wedges.size());
+  for (std::uint32_t w : wedges) out.wedge_vertex.push_back(vertex_map[wedge_vertex[w]]);
+  per_wedge(overrides.normals ? *overrides.normals : m.normals, out.normals, 1);
+  per_wedge(m.tangents, out.tangents, 1);
+  out.uvs.resize(m.uvs.size());
+  for (std::size_t i = 0; i < m.uvs.size(); ++i) per_wedge(set_of(overrides.uvs, m.uvs, i), out.uvs[i], 1);
+  out.colors.resize(m.colors.size());
+  for (std::size_t i = 0; i < m.colors.size(); ++i) per_wedge(set_of(overrides.colors, m.colors, i), out.colors[i], 1);
+  out.color_components = m.color_components;
+  out.custom.reserve(m.custom.size());
+  for (const CustomAttribute& a : m.custom) {
+    CustomAttribute c{a.name, a.components, a.format, {}};
+    per_wedge(a.values, c.values, static_cast<std::size_t>(std::max(a.components, 0)));
+    out.custom.push_back(std::move(c));
+  }
+  const std::vector<MorphTarget>& morphs = overrides.morph_targets ? *overrides.morph_targets : m.morph_targets;
+  out.morph_targets.reserve(morphs.size());
+  for (const MorphTarget& t : morphs) {
+    MorphTarget o{t.name, {}, {}, {}};
+    per_wedge(t.position_deltas, o.position_deltas, 1);
+    per_wedge(t.normal_deltas, o.normal_deltas, 1);
+    per_wedge(t.tangent_deltas, o.tangent_deltas, 1);
+    out.morph_targets.push_back(std::move(o));
   }
   return out;
 }

@@ -596,66 +596,13 @@ void QuadMesh::rollback(const Undo& undo) {
 }
 
 Mesh QuadMesh::to_mesh(const Mesh& m) const {
-  const std::size_t nw = m.wedge_count(), nv = m.vertex_count();
-  std::vector<std::uint32_t> wedge_map(nw, kInvalidIndex), vertex_map(nv, kInvalidIndex);
+  std::vector<std::uint32_t> wedge_map(m.wedge_count(), kInvalidIndex), vertices;
   for (std::uint32_t f = 0; f < face_size_.size(); ++f) {
     for (std::uint32_t i = 0; i < face_size_[f]; ++i) wedge_map[face_wedge(f, i)] = 0;
   }
-  std::vector<std::uint32_t> wedges, vertices;  // kept ids, ascending
-  for (std::uint32_t w = 0; w < nw; ++w) {
-    if (wedge_map[w] == kInvalidIndex) continue;
-    wedge_map[w] = static_cast<std::uint32_t>(wedges.size());
-    wedges.push_back(w);
-    vertex_map[wedge_vertex_[w]] = 0;
-  }
-  for (std::uint32_t v = 0; v < nv; ++v) {
-    if (vertex_map[v] == kInvalidIndex) continue;
-    vertex_map[v] = static_cast<std::uint32_t>(vertices.size());
-    vertices.push_back(v);
-  }
-
-  Mesh out;
-  out.name = m.name;
-  out.materials = m.materials;
-  out.groups = m.groups;
-  out.formats = m.formats;
-  out.morph_default_weights = m.morph_default_weights;
-  out.positions.reserve(vertices.size());
-  for (std::uint32_t v : vertices) out.positions.push_back(moved_[v] ? to_float(positions_[v]) : m.positions[v]);
-  auto per_vertex = [&](const auto& in, auto& dst) {
-    if (in.size() != nv) return;
-    dst.reserve(vertices.size());
-    for (std::uint32_t v : vertices) dst.push_back(in[v]);
-  };
-  per_vertex(m.skin, out.skin);
-  per_vertex(m.priority, out.priority);
-  auto per_wedge = [&](const auto& in, auto& dst, std::size_t components) {
-    if (in.size() != nw * components) return;
-    dst.reserve(wedges.size() * components);
-    for (std::uint32_t w : wedges) {
-      for (std::size_t i = 0; i < components; ++i) dst.push_back(in[w * components + i]);
-    }
-  };
-  out.wedge_vertex.reserve(wedges.size());
-  for (std::uint32_t w : wedges) out.wedge_vertex.push_back(vertex_map[wedge_vertex_[w]]);
-  per_wedge(m.normals, out.normals, 1);
-  per_wedge(m.tangents, out.tangents, 1);
-  out.uvs.resize(m.uvs.size());
-  for (std::size_t i = 0; i < m.uvs.size(); ++i) per_wedge(m.uvs[i], out.uvs[i], 1);
-  out.colors.resize(m.colors.size());
-  for (std::size_t i = 0; i < m.colors.size(); ++i) per_wedge(m.colors[i], out.colors[i], 1);
-  out.color_components = m.color_components;
-  for (const CustomAttribute& a : m.custom) {
-    CustomAttribute c{a.name, a.components, a.format, {}};
-    per_wedge(a.values, c.values, static_cast<std::size_t>(std::max(a.components, 0)));
-    out.custom.push_back(std::move(c));
-  }
-  for (const MorphTarget& t : m.morph_targets) {
-    MorphTarget o{t.name, {}, {}, {}};
-    per_wedge(t.position_deltas, o.position_deltas, 1);
-    per_wedge(t.normal_deltas, o.normal_deltas, 1);
-    per_wedge(t.tangent_deltas, o.tangent_deltas, 1);
-    out.morph_targets.push_back(std::move(o));
+  Mesh out = compact_vertices_and_wedges(m, wedge_map, vertices, {.wedge_vertex = &wedge_vertex_});
+  for (std::size_t i = 0; i < vertices.size(); ++i) {
+    if (moved_[vertices[i]]) out.positions[i] = to_float(positions_[vertices[i]]);
   }
 
   const bool groups = m.face_group.size() == m.face_count();

@@ -1679,71 +1679,19 @@ void CollapseMesh::ring(std::uint32_t v, std::vector<std::uint32_t>& out) const 
 
 Mesh CollapseMesh::output() const {
   const Mesh& m = src_;
-  const std::size_t nw = m.wedge_count(), nv = m.vertex_count();
-  std::vector<std::uint32_t> wedge_map(nw, kInvalidIndex), vertex_map(nv, kInvalidIndex);
+  std::vector<std::uint32_t> wedge_map(m.wedge_count(), kInvalidIndex), vertices;
   for (std::size_t f = 0; f < tri_source_.size(); ++f) {
     if (tri_[3 * f] == kInvalidIndex) continue;
     for (int j = 0; j < 3; ++j) wedge_map[tri_wedge_[3 * f + j]] = 0;
   }
-  std::vector<std::uint32_t> wedges, vertices;  // kept ids, ascending
-  for (std::uint32_t w = 0; w < nw; ++w) {
-    if (wedge_map[w] == kInvalidIndex) continue;
-    wedge_map[w] = static_cast<std::uint32_t>(wedges.size());
-    wedges.push_back(w);
-    vertex_map[m.wedge_vertex[w]] = 0;
+  Mesh out = compact_vertices_and_wedges(
+      m, wedge_map, vertices,
+      {.skin = skin_.empty() ? nullptr : &skin_, .normals = normals_.empty() ? nullptr : &normals_, .uvs = &uvs_,
+       .colors = &colors_, .morph_targets = &morphs_});
+  for (std::size_t i = 0; i < vertices.size(); ++i) {
+    const std::uint32_t v = vertices[i];
+    if (state_[v] & kMoved) out.positions[i] = to_float(origin_ + vx_[v].pos * scale_);
   }
-  for (std::uint32_t v = 0; v < nv; ++v) {
-    if (vertex_map[v] == kInvalidIndex) continue;
-    vertex_map[v] = static_cast<std::uint32_t>(vertices.size());
-    vertices.push_back(v);
-  }
-
-  Mesh out;
-  out.positions.reserve(vertices.size());
-  for (std::uint32_t v : vertices) {
-    out.positions.push_back((state_[v] & kMoved) ? to_float(origin_ + vx_[v].pos * scale_) : m.positions[v]);
-  }
-  auto per_vertex = [&](const auto& in, auto& dst) {
-    if (in.size() != nv) return;
-    dst.reserve(vertices.size());
-    for (std::uint32_t v : vertices) dst.push_back(in[v]);
-  };
-  per_vertex(skin_.empty() ? m.skin : skin_, out.skin);
-  per_vertex(m.priority, out.priority);
-
-  auto per_wedge = [&](const auto& in, auto& dst, std::size_t components) {
-    if (in.size() != nw * components) return;
-    dst.reserve(wedges.size() * components);
-    for (std::uint32_t w : wedges) {
-      for (std::size_t i = 0; i < components; ++i) dst.push_back(in[w * components + i]);
-    }
-  };
-  out.wedge_vertex.reserve(wedges.size());
-  for (std::uint32_t w : wedges) out.wedge_vertex.push_back(vertex_map[m.wedge_vertex[w]]);
-  per_wedge(normals_.empty() ? m.normals : normals_, out.normals, 1);
-  per_wedge(m.tangents, out.tangents, 1);
-  out.uvs.resize(m.uvs.size());
-  for (std::size_t i = 0; i < m.uvs.size(); ++i) per_wedge(uvs_[i].empty() ? m.uvs[i] : uvs_[i], out.uvs[i], 1);
-  out.colors.resize(m.colors.size());
-  for (std::size_t i = 0; i < m.colors.size(); ++i) {
-    per_wedge(colors_[i].empty() ? m.colors[i] : colors_[i], out.colors[i], 1);
-  }
-  out.color_components = m.color_components;
-  out.custom.reserve(m.custom.size());
-  for (const CustomAttribute& a : m.custom) {
-    CustomAttribute c{a.name, a.components, a.format, {}};
-    per_wedge(a.values, c.values, static_cast<std::size_t>(std::max(a.components, 0)));
-    out.custom.push_back(std::move(c));
-  }
-  out.morph_targets.reserve(morphs_.size());
-  for (const MorphTarget& t : morphs_) {
-    MorphTarget o{t.name, {}, {}, {}};
-    per_wedge(t.position_deltas, o.position_deltas, 1);
-    per_wedge(t.normal_deltas, o.normal_deltas, 1);
-    per_wedge(t.tangent_deltas, o.tangent_deltas, 1);
-    out.morph_targets.push_back(std::move(o));
-  }
-  out.morph_default_weights = m.morph_default_weights;
 
   out.face_offsets.reserve(alive_faces_ + 1);
   out.corner_wedge.reserve(3 * alive_faces_);
@@ -1757,10 +1705,6 @@ Mesh CollapseMesh::output() const {
     out.add_face(w, 3, sf < m.face_material.size() ? m.face_material[sf] : 0);
     if (groups) out.face_group.push_back(m.face_group[sf]);
   }
-  out.materials = m.materials;
-  out.groups = m.groups;
-  out.formats = m.formats;
-  out.name = m.name;
   if (blend_ && !out.tangents.empty()) recompute_tangents(out);
   return out;
 }

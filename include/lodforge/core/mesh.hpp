@@ -156,6 +156,25 @@ void for_each_face_triangle(const Mesh& mesh, std::size_t f, Emit&& emit) {
 // Three vertex indices per triangle of the whole mesh, as for_each_face_triangle() makes them.
 std::vector<std::uint32_t> triangle_vertex_indices(const Mesh& mesh);
 
+// Arrays that replace the source mesh's in compact_vertices_and_wedges(): a null pointer, or an empty UV or
+// colour set, means the source's own.
+struct AttributeOverrides {
+  const std::vector<std::uint32_t>* wedge_vertex = nullptr;         // per wedge: its vertex now (after welds)
+  const std::vector<SkinInfluences>* skin = nullptr;                // per vertex
+  const std::vector<Vec3f>* normals = nullptr;                      // per wedge
+  const std::vector<std::vector<Vec2f>>* uvs = nullptr;             // per set, per wedge
+  const std::vector<std::vector<Vec4f>>* colors = nullptr;          // per set, per wedge
+  const std::vector<MorphTarget>* morph_targets = nullptr;
+};
+
+// The vertices and wedges of `m` that a simplified face list still uses, renumbered in ascending order: what
+// the engines' outputs share. On entry wedge_map (one entry per wedge of m) marks the used wedges with any
+// value but kInvalidIndex; on return it holds their new ids. `vertices` receives the source vertex of each
+// output vertex. The result has m's name, materials, groups, formats, morph default weights and every vertex
+// and wedge array (positions as in m: callers write the moved ones), and no faces.
+Mesh compact_vertices_and_wedges(const Mesh& m, std::vector<std::uint32_t>& wedge_map,
+                                 std::vector<std::uint32_t>& vertices, const AttributeOverrides& overrides = {});
+
 // Returns a mesh whose faces are all triangles (as for_each_face_triangle() makes them); every other array
 // is shared unchanged. `triangle_face` (optional) receives the source face of each triangle.
 Mesh triangulated(const Mesh& mesh, std::vector<std::uint32_t>* triangle_face = nullptr);
