@@ -50,25 +50,32 @@ void merge_attribute_quadrics(AttributeQuadric& q, std::span<AttributeGradient> 
   }
 }
 
+namespace {
+
+// Eliminates one attribute from the position quadric (Hoppe 1999): subtracts (g, d)(g, d)^T / alpha, with
+// inv = 1 / alpha.
+void subtract_gradient(Quadric& r, const Vec3d& g, double d, double inv) {
+  r.a00 -= inv * g[0] * g[0];
+  r.a01 -= inv * g[0] * g[1];
+  r.a02 -= inv * g[0] * g[2];
+  r.a11 -= inv * g[1] * g[1];
+  r.a12 -= inv * g[1] * g[2];
+  r.a22 -= inv * g[2] * g[2];
+  r.b0 -= inv * d * g[0];
+  r.b1 -= inv * d * g[1];
+  r.b2 -= inv * d * g[2];
+  r.c -= inv * d * d;
+}
+
+}  // namespace
+
 Quadric reduce_attributes(const AttributeQuadric& q, std::span<const AttributeGradient> sums) {
   Quadric r;
   if (!(q.alpha > 0.0)) return r;
   r = q.pos;
   r.weight = 0.0;
   const double inv = 1.0 / q.alpha;
-  for (const AttributeGradient& s : sums) {
-    const Vec3d& g = s.g;
-    r.a00 -= inv * g[0] * g[0];
-    r.a01 -= inv * g[0] * g[1];
-    r.a02 -= inv * g[0] * g[2];
-    r.a11 -= inv * g[1] * g[1];
-    r.a12 -= inv * g[1] * g[2];
-    r.a22 -= inv * g[2] * g[2];
-    r.b0 -= inv * s.d * g[0];
-    r.b1 -= inv * s.d * g[1];
-    r.b2 -= inv * s.d * g[2];
-    r.c -= inv * s.d * s.d;
-  }
+  for (const AttributeGradient& s : sums) subtract_gradient(r, s.g, s.d, inv);
   return r;
 }
 
@@ -81,18 +88,7 @@ Quadric reduce_merged_attributes(const AttributeQuadric& a, std::span<const Attr
   r.weight = 0.0;
   const double inv = 1.0 / alpha;
   for (std::size_t j = 0; j < ga.size(); ++j) {
-    const Vec3d g = ga[j].g + gb[j].g;
-    const double d = ga[j].d + gb[j].d;
-    r.a00 -= inv * g[0] * g[0];
-    r.a01 -= inv * g[0] * g[1];
-    r.a02 -= inv * g[0] * g[2];
-    r.a11 -= inv * g[1] * g[1];
-    r.a12 -= inv * g[1] * g[2];
-    r.a22 -= inv * g[2] * g[2];
-    r.b0 -= inv * d * g[0];
-    r.b1 -= inv * d * g[1];
-    r.b2 -= inv * d * g[2];
-    r.c -= inv * d * d;
+    subtract_gradient(r, ga[j].g + gb[j].g, ga[j].d + gb[j].d, inv);
   }
   return r;
 }
