@@ -29,6 +29,7 @@
 #include <string>
 #include <vector>
 
+#include "corpus_assets.hpp"
 #include "lodforge/eval/attribute_eval.hpp"
 #include "lodforge/eval/eval.hpp"
 #include "lodforge/io/asset.hpp"
@@ -42,20 +43,6 @@ using json = nlohmann::json;
 
 constexpr double kDistanceVsPositionOnly = 1.15;
 constexpr double kThroughputVsPositionOnly = 0.6;
-
-const char* const kAssets[] = {
-    "gltf/Duck.glb",
-    "gltf/CesiumMilkTruck.glb",
-    "gltf/MorphStressTest.gltf",
-    "gltf/armor-knight.gltf",
-    "gltf/Avocado/Avocado.gltf",
-    "gltf/AnisotropyBarnLamp/AnisotropyBarnLamp.gltf",
-    "gltf/FlightHelmet/FlightHelmet.gltf",
-    "skinned/CesiumMan.glb",
-    "skinned/Fox.glb",
-    "skinned/RiggedFigure.glb",
-    "skinned/RiggedSimple.glb",
-};
 
 // The same triangles with positions only: one wedge per vertex.
 Mesh positions_only(const Mesh& m) {
@@ -148,7 +135,7 @@ int main(int argc, char** argv) {
   std::vector<Run> runs;
   std::printf("%-20s %5s %-8s %8s %8s %10s %6s %6s %9s %9s %9s %11s\n", "asset", "ratio", "method", "tris in",
               "tris out", "mean %diag", "flips", "span", "rms nrm", "rms uv0", "rms col0", "tris/s");
-  for (const char* rel : kAssets) {
+  for (const char* rel : lodforge::testing::kGltfAttributeAssets) {
     const fs::path path = fs::path(corpus) / rel;
     if (!only.empty() && std::find(only.begin(), only.end(), fs::path(rel).stem().string()) == only.end()) continue;
     if (!fs::exists(path)) {

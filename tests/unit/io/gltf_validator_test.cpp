@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 
 #include <algorithm>
+#include <iterator>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -13,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "corpus_assets.hpp"
 #include "lodforge/io/asset.hpp"
 #include "test_support.hpp"
 
@@ -23,22 +25,16 @@ namespace fs = std::filesystem;
 
 using ::lodforge::testing::validate_gltf;
 
-const char* const kCorpus[] = {
-    "gltf/Duck.glb",
-    "gltf/CesiumMilkTruck.glb",
-    "gltf/MorphStressTest.gltf",
-    "gltf/armor-knight.gltf",
-    "gltf/Avocado/Avocado.gltf",
-    "gltf/AnisotropyBarnLamp/AnisotropyBarnLamp.gltf",
-    "gltf/FlightHelmet/FlightHelmet.gltf",
-    "skinned/CesiumMan.glb",
-    "skinned/Fox.glb",
-    "skinned/RiggedFigure.glb",
-    "skinned/RiggedSimple.glb",
-    "hardsurface/kenney_alien.glb",
-    "hardsurface/kenney_cakeBirthday.glb",
-    "hardsurface/kenney_craft_speederD/craft_speederD.gltf",
-};
+// The attribute assets plus three hard-surface glTF files from the Kenney kits.
+std::vector<const char*> corpus_files() {
+  std::vector<const char*> files(std::begin(::lodforge::testing::kGltfAttributeAssets),
+                                 std::end(::lodforge::testing::kGltfAttributeAssets));
+  for (const char* f : {"hardsurface/kenney_alien.glb", "hardsurface/kenney_cakeBirthday.glb",
+                        "hardsurface/kenney_craft_speederD/craft_speederD.gltf"}) {
+    files.push_back(f);
+  }
+  return files;
+}
 
 class GltfValidator : public ::testing::TestWithParam<const char*> {};
 
@@ -63,7 +59,7 @@ TEST_P(GltfValidator, RoundTripHasNoNewErrors) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Corpus, GltfValidator, ::testing::ValuesIn(kCorpus), case_name);
+INSTANTIATE_TEST_SUITE_P(Corpus, GltfValidator, ::testing::ValuesIn(corpus_files()), case_name);
 
 TEST(GltfValidatorWrite, DocumentBuiltWithoutSourcePasses) {
   LODFORGE_REQUIRE_GLTF_VALIDATOR();

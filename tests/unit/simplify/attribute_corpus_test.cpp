@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "attribute_fixtures.hpp"
+#include "corpus_assets.hpp"
 #include "lodforge/core/validate.hpp"
 #include "lodforge/io/asset.hpp"
 #include "lodforge/simplify/simplify.hpp"
@@ -22,20 +23,6 @@ namespace lodforge {
 namespace {
 
 namespace fs = std::filesystem;
-
-const char* const kAssets[] = {
-    "gltf/Duck.glb",
-    "gltf/CesiumMilkTruck.glb",
-    "gltf/MorphStressTest.gltf",
-    "gltf/armor-knight.gltf",
-    "gltf/Avocado/Avocado.gltf",
-    "gltf/AnisotropyBarnLamp/AnisotropyBarnLamp.gltf",
-    "gltf/FlightHelmet/FlightHelmet.gltf",
-    "skinned/CesiumMan.glb",
-    "skinned/Fox.glb",
-    "skinned/RiggedFigure.glb",
-    "skinned/RiggedSimple.glb",
-};
 
 class AttributeCorpus : public ::testing::TestWithParam<const char*> {};
 
@@ -98,7 +85,7 @@ TEST_P(AttributeCorpus, SimplifiesWithoutChartMergesOrFlips) {
   EXPECT_EQ(r.exit_code, 0) << r.output;
 }
 
-INSTANTIATE_TEST_SUITE_P(Gltf, AttributeCorpus, ::testing::ValuesIn(kAssets), case_name);
+INSTANTIATE_TEST_SUITE_P(Gltf, AttributeCorpus, ::testing::ValuesIn(testing::kGltfAttributeAssets), case_name);
 
 }  // namespace
 }  // namespace lodforge
