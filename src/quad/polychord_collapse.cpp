@@ -84,6 +84,18 @@ struct Chord {
   std::vector<std::uint8_t> blocked;
 };
 
+// A diagonal collapse candidate: corners `diagonal` and `diagonal + 2` of quad `face`, scored while the face
+// had `version`.
+struct DiagonalEntry {
+  double key;
+  std::uint32_t face, diagonal, version;
+  bool operator>(const DiagonalEntry& o) const {
+    if (key != o.key) return key > o.key;
+    if (face != o.face) return face > o.face;
+    return diagonal > o.diagonal;
+  }
+};
+
 struct IslandPlan {
   std::vector<std::vector<std::uint32_t>> islands;
   std::vector<Vec3d> positions;
@@ -127,7 +139,8 @@ class Engine {
   void setup_quadrics();
   double rung_cost(const std::array<std::uint32_t, 2>& r) const;
   bool skin_allows(const std::vector<std::vector<std::uint32_t>>& islands) const;
-  std::optional<Candidate> best_candidate(const Chord& chord, long long cap) const;
+  // held_key: the best key among the runs looked at that only the hard triangle budget kept out (+inf: none).
+  std::optional<Candidate> best_candidate(const Chord& chord, long long cap, double& held_key) const;
   // How many more triangles runs may leave behind (the triangle budget minus the triangles there are).
   long long triangles_left_allowed() const {
     return triangle_budget_ - static_cast<long long>(qm_.triangle_faces());
@@ -140,6 +153,12 @@ class Engine {
     return std::max(0LL, hard - static_cast<long long>(qm_.triangle_faces()));
   }
   IslandPlan plan(const Chord& chord, const Candidate& c) const;
+  void place(const std::vector<std::uint32_t>& island, IslandPlan& out) const;
+  void push_diagonals(std::uint32_t face);
+  bool interior_valence_at_most(std::uint32_t v, std::size_t faces) const;
+  // Pops the best diagonal collapse and makes it if still valid; returns whether one was made.
+  bool try_diagonal();
+  double diagonal_top();  // key of the best live diagonal entry (stale ones dropped), +inf when none
   bool block_failing_rungs(Chord& chord, const Candidate& c);
   void trace_from(std::uint32_t face, int direction);
   void push(std::uint32_t id);
@@ -160,6 +179,13 @@ class Engine {
   std::vector<Chord> chords_;
   std::vector<std::array<std::uint32_t, 2>> face_chord_;
   std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> queue_;
+  std::vector<std::uint32_t> face_version_;
+  std::priority_queue<DiagonalEntry, std::vector<DiagonalEntry>, std::greater<DiagonalEntry>> diagonals_;
+  std::size_t diagonal_collapses_ = 0;
+  bool diagonals_scored_ = false;  // diagonals_ holds every quad's diagonals (see run())
+  // Runs the hard triangle budget holds back, by key (lazy: entries of changed chords are dropped on top).
+  std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> held_;
+  double held_top();
   double error_bound_ = 0;
   std::size_t collapses_ = 0, rejected_ = 0;
 };
@@ -238,7 +264,8 @@ double Engine::rung_cost(const std::array<std::uint32_t, 2>& r) const {
 // end while cost per removed triangle improves (stopping once it is clearly worse), against the whole chord.
 // Runs never hold two rungs that share a vertex (self-touching or self-intersecting strips), and remove at
 // most `cap` triangles.
-std::optional<Candidate> Engine::best_candidate(const Chord& chord, long long cap) const {
+std::optional<Candidate> Engine::best_candidate(const Chord& chord, long long cap, double& held_key) const {
+  held_key = std::numeric_limits<double>::infinity();
   const Polychord& p = chord.trace;
   const std::size_t rungs = p.rungs.size(), quads = p.faces.size();
   if (rungs == 0) return std::nullopt;
@@ -290,7 +317,12 @@ std::optional<Candidate> Engine::best_candidate(const Chord& chord, long long ca
     return c;
   };
   const long long hard_left = hard_triangles_left();
-  auto fits = [&](const Candidate& c) { return c.removed > 0 && c.removed <= cap && c.left <= hard_left; };
+  auto fits = [&](const Candidate& c) {
+    if (c.removed <= 0 || c.removed > cap) return false;
+    if (c.left <= hard_left) return true;
+    held_key = std::min(held_key, c.key);
+    return false;
+  };
   auto better = [](const Candidate& a, const Candidate& b) {
     return a.key < b.key || (a.key == b.key && a.removed > b.removed);
   };
@@ -381,39 +413,114 @@ IslandPlan Engine::plan(const Chord& chord, const Candidate& c) const {
     }
     out.islands[island_of[r]].push_back(verts[i]);
   }
-  for (const auto& island : out.islands) {
-    Quadric q;
-    std::uint32_t locked = kInvalidIndex;
-    Vec3d centroid{};
-    for (std::uint32_t v : island) {
-      q += quadric_[v];
-      centroid = centroid + qm_.position(v);
-      if (qm_.locked(v)) locked = v;
-    }
-    centroid = centroid * (1.0 / static_cast<double>(island.size()));
-    Vec3d x;
-    if (locked != kInvalidIndex) {
-      x = qm_.position(locked);
-    } else if (island.size() == 2) {
-      x = place_on_edge(q, qm_.position(island[0]), qm_.position(island[1])).position;
-    } else {
-      // Larger islands: the minimiser when well conditioned, else the best of the centroid and the members.
-      x = centroid;
-      double best = q.evaluate(centroid);
-      for (std::uint32_t v : island) {
-        if (q.evaluate(qm_.position(v)) < best) {
-          best = q.evaluate(qm_.position(v));
-          x = qm_.position(v);
-        }
-      }
-      if (const auto m = q.minimizer(kMinPivotRelative)) x = *m;
-    }
-    const double e = q.evaluate(x);
-    out.max_error = std::max(out.max_error, q.weight > 0.0 ? std::sqrt(e / q.weight) : 0.0);
-    out.positions.push_back(x);
-    out.quadrics.push_back(q);
-  }
+  for (const auto& island : out.islands) place(island, out);
   return out;
+}
+
+// Places one island at its summed quadric's best point (the locked member's position when it has one) and
+// appends position, quadric and error to `out`.
+void Engine::place(const std::vector<std::uint32_t>& island, IslandPlan& out) const {
+  Quadric q;
+  std::uint32_t locked = kInvalidIndex;
+  Vec3d centroid{};
+  for (std::uint32_t v : island) {
+    q += quadric_[v];
+    centroid = centroid + qm_.position(v);
+    if (qm_.locked(v)) locked = v;
+  }
+  centroid = centroid * (1.0 / static_cast<double>(island.size()));
+  Vec3d x;
+  if (locked != kInvalidIndex) {
+    x = qm_.position(locked);
+  } else if (island.size() == 2) {
+    x = place_on_edge(q, qm_.position(island[0]), qm_.position(island[1])).position;
+  } else {
+    // Larger islands: the minimiser when well conditioned, else the best of the centroid and the members.
+    x = centroid;
+    double best = q.evaluate(centroid);
+    for (std::uint32_t v : island) {
+      if (q.evaluate(qm_.position(v)) < best) {
+        best = q.evaluate(qm_.position(v));
+        x = qm_.position(v);
+      }
+    }
+    if (const auto m = q.minimizer(kMinPivotRelative)) x = *m;
+  }
+  const double e = q.evaluate(x);
+  out.max_error = std::max(out.max_error, q.weight > 0.0 ? std::sqrt(e / q.weight) : 0.0);
+  out.positions.push_back(x);
+  out.quadrics.push_back(q);
+}
+
+// Whether v is an interior vertex (a face across every side at v) with at most `faces` faces.
+bool Engine::interior_valence_at_most(std::uint32_t v, std::size_t faces) const {
+  const std::vector<std::uint32_t>& fan = qm_.vertex_faces(v);
+  if (fan.size() > faces) return false;
+  for (std::uint32_t f : fan) {
+    const std::uint32_t n = qm_.face_size(f), i = qm_.corner_of(f, v);
+    if (qm_.across(f, i).kind != QuadMesh::Across::face || qm_.across(f, (i + n - 1) % n).kind != QuadMesh::Across::face) {
+      return false;
+    }
+  }
+  return true;
+}
+
+// Scores both diagonals of quad f (nothing for other faces, or with diagonal collapses off).
+void Engine::push_diagonals(std::uint32_t f) {
+  if (options_.diagonal_factor <= 0.0 || qm_.face_size(f) != 4) return;
+  for (std::uint32_t d = 0; d < 2; ++d) {
+    const double cost = rung_cost({qm_.face_vertex(f, d), qm_.face_vertex(f, d + 2)});
+    if (!std::isfinite(cost)) continue;
+    // The key a one-rung run of this cost would have without its triangle penalty (best_candidate), times
+    // the diagonal factor.
+    const double key = options_.diagonal_factor * std::max(0.5 * cost, options_.worst_rung_weight * 0.5 * cost);
+    diagonals_.push({key, f, d, face_version_[f]});
+  }
+}
+
+double Engine::held_top() {
+  while (!held_.empty()) {
+    const Entry& e = held_.top();
+    if (chords_[e.chord].state == Chord::State::alive && chords_[e.chord].version == e.version) return e.key;
+    held_.pop();
+  }
+  return std::numeric_limits<double>::infinity();
+}
+
+double Engine::diagonal_top() {
+  while (!diagonals_.empty()) {
+    const DiagonalEntry& e = diagonals_.top();
+    if (qm_.face_size(e.face) == 4 && face_version_[e.face] == e.version) return e.key;
+    diagonals_.pop();
+  }
+  return std::numeric_limits<double>::infinity();
+}
+
+bool Engine::try_diagonal() {
+  const DiagonalEntry e = diagonals_.top();
+  diagonals_.pop();
+  // The two other corners each lose a face: an interior one left with two faces would be a doublet (two
+  // faces sharing two sides), which folds.
+  for (std::uint32_t k : {e.diagonal + 1, (e.diagonal + 3) % 4}) {
+    if (interior_valence_at_most(qm_.face_vertex(e.face, k), 3)) return false;
+  }
+  IslandPlan plan;
+  plan.islands = {{qm_.face_vertex(e.face, e.diagonal), qm_.face_vertex(e.face, e.diagonal + 2)}};
+  place(plan.islands[0], plan);
+  if (options_.max_error_abs >= 0.0 && plan.max_error > options_.max_error_abs) return false;
+  if (!skin_allows(plan.islands)) return false;
+  WeldOptions dissolve = weld_options_;
+  dissolve.dissolve_diagonal_quads = true;
+  const WeldResult w = qm_.weld(plan.islands, plan.positions, dissolve);
+  if (!w.ok()) {
+    ++rejected_;
+    return false;
+  }
+  quadric_[w.survivors[0]] = plan.quadrics[0];
+  error_bound_ = std::max(error_bound_, plan.max_error);
+  ++diagonal_collapses_;
+  invalidate_around(w);
+  return true;
 }
 
 // After the weld refused run c: blocks the rungs of c that the weld would refuse on their own (checked with
@@ -440,11 +547,13 @@ bool Engine::block_failing_rungs(Chord& chord, const Candidate& c) {
 void Engine::push(std::uint32_t id) {
   Chord& chord = chords_[id];
   const long long remaining = static_cast<long long>(qm_.triangle_count()) - static_cast<long long>(target_);
-  if (const auto c = best_candidate(chord, remaining + slack_)) {
+  double held = 0;
+  if (const auto c = best_candidate(chord, remaining + slack_, held)) {
     chord.best = *c;
     chord.queued = true;
     queue_.push({c->key, c->removed, id, chord.version});
   }
+  if (std::isfinite(held) && options_.diagonal_factor > 0.0) held_.push({held, 0, id, chord.version});
 }
 
 void Engine::trace_from(std::uint32_t face, int direction) {
@@ -501,6 +610,8 @@ void Engine::invalidate_around(const WeldResult& w) {
     }
   }
   for (std::uint32_t f : faces) {
+    ++face_version_[f];
+    if (diagonals_scored_) push_diagonals(f);
     if (qm_.face_size(f) != 4) continue;
     for (int d = 0; d < 2; ++d) {
       if (face_chord_[f][d] == kInvalidIndex) trace_from(f, d);
@@ -513,6 +624,7 @@ PolychordResult Engine::run() {
   result.triangles_before = qm_.triangle_count();
   result.quads_before = qm_.face_kinds().quads;
   face_chord_.assign(qm_.face_slots(), {kInvalidIndex, kInvalidIndex});
+  face_version_.assign(qm_.face_slots(), 0);
   for (std::uint32_t f = 0; f < qm_.face_slots(); ++f) {
     if (qm_.face_size(f) != 4) continue;
     for (int d = 0; d < 2; ++d) {
@@ -522,6 +634,20 @@ PolychordResult Engine::run() {
 
   const double budget = options_.max_error_abs;
   while (qm_.triangle_count() > target_) {
+    // While the hard triangle budget forces runs much dearer than those it holds back (PolychordOptions::
+    // diagonal_gate), a diagonal collapse that ranks better than the best run goes first. Diagonals are
+    // scored from the first time the gate opens (most meshes never open it).
+    const double run_key = queue_.empty() ? std::numeric_limits<double>::infinity() : queue_.top().key;
+    if (options_.diagonal_factor > 0.0 && run_key > options_.diagonal_gate * held_top()) {
+      if (!diagonals_scored_) {
+        diagonals_scored_ = true;
+        for (std::uint32_t f = 0; f < qm_.face_slots(); ++f) push_diagonals(f);
+      }
+      if (const double diagonal = diagonal_top(); diagonal < run_key) {
+        try_diagonal();
+        continue;
+      }
+    }
     if (queue_.empty()) {
       // The triangle budget is a preference, not a limit: when only runs that leave triangles are left,
       // double it (up to no limit) and score every chord again rather than hand the rest to the triangle
@@ -547,7 +673,12 @@ PolychordResult Engine::run() {
     Chord& chord = chords_[e.chord];
     if (chord.version != e.version) continue;
     chord.queued = false;
-    if (chord.state == Chord::State::stale) retrace(e.chord);
+    // A stale chord is re-traced into new chords (queued afresh) and dies; retrace() grows chords_, so
+    // `chord` must not be used after it.
+    if (chord.state == Chord::State::stale) {
+      retrace(e.chord);
+      continue;
+    }
     if (chord.state != Chord::State::alive) continue;
     const long long remaining = static_cast<long long>(qm_.triangle_count()) - static_cast<long long>(target_);
     // The cap tightened, or the run's standing against the triangle budget changed, since it was queued.
@@ -593,6 +724,7 @@ PolychordResult Engine::run() {
   result.error_bound_abs = error_bound_;
   result.collapses = collapses_;
   result.rejected = rejected_;
+  result.diagonal_collapses = diagonal_collapses_;
   return result;
 }
 
@@ -617,10 +749,13 @@ PolychordResult simplify_polychord(const Mesh& mesh, const PolychordOptions& opt
   if (!(options.triangle_penalty >= 0.0 && std::isfinite(options.triangle_penalty)) ||
       !(options.worst_rung_weight >= 0.0 && std::isfinite(options.worst_rung_weight)) ||
       !(options.max_triangle_fraction >= 0.0) || !(options.over_budget_factor >= 1.0) ||
-      !(options.hard_budget_factor >= 1.0) || options.seed_rungs < 1 || std::isnan(options.max_error_abs)) {
+      !(options.hard_budget_factor >= 1.0) || options.seed_rungs < 1 || std::isnan(options.max_error_abs) ||
+      !(options.diagonal_factor >= 0.0 && std::isfinite(options.diagonal_factor)) ||
+      !(options.diagonal_gate >= 0.0 && std::isfinite(options.diagonal_gate))) {
     throw std::invalid_argument(
-        "polychord: triangle_penalty and worst_rung_weight must be finite and >= 0, max_triangle_fraction >= 0, "
-        "over_budget_factor and hard_budget_factor >= 1, seed_rungs >= 1, max_error_abs not NaN");
+        "polychord: triangle_penalty, worst_rung_weight, diagonal_factor and diagonal_gate must be finite and "
+        ">= 0, max_triangle_fraction >= 0, over_budget_factor and hard_budget_factor >= 1, seed_rungs >= 1, "
+        "max_error_abs not NaN");
   }
   for (std::uint32_t v : options.locked_vertices) {
     if (v >= mesh.vertex_count()) {

@@ -321,15 +321,20 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
   for (std::uint32_t f : affected) {
     const std::uint32_t n = face_size_[f];
     for (std::uint32_t i = 0; i < n; ++i) {
-      const std::uint32_t a = face_vertex(f, i), b = face_vertex(f, (i + 1) % n);
+      const std::uint32_t a = face_vertex(f, i);
       if (island_of_[a] == kInvalidIndex) continue;
       const std::uint32_t wa = face_wedge(f, i);
       touch_wedge(wa);
-      if (island_of_[b] != island_of_[a]) continue;
-      const std::uint32_t wb = face_wedge(f, (i + 1) % n);
-      touch_wedge(wb);
-      const std::uint32_t ra = find_root(wedge_parent_, wa), rb = find_root(wedge_parent_, wb);
-      if (ra != rb) wedge_parent_[std::max(ra, rb)] = std::min(ra, rb);
+      const auto join = [&](std::uint32_t other) {
+        if (island_of_[face_vertex(f, other)] != island_of_[a]) return;
+        const std::uint32_t wb = face_wedge(f, other);
+        touch_wedge(wb);
+        const std::uint32_t ra = find_root(wedge_parent_, wa), rb = find_root(wedge_parent_, wb);
+        if (ra != rb) wedge_parent_[std::max(ra, rb)] = std::min(ra, rb);
+      };
+      join((i + 1) % n);
+      // A dissolved quad (dissolve_diagonal_quads): its opposite corners become one corner of each neighbour.
+      if (n == 4 && options.dissolve_diagonal_quads) join((i + 2) % n);
     }
   }
   // (class root, vertex, wedge): a class may hold one wedge per vertex.
@@ -368,6 +373,13 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
   for (std::size_t k = 0; k < affected.size(); ++k) {
     const std::uint32_t f = affected[k], n = face_size_[f];
     auto& poly = new_faces[k];
+    if (n == 4 && options.dissolve_diagonal_quads) {
+      const auto in_one = [&](std::uint32_t i) {
+        return island_of_[face_vertex(f, i)] != kInvalidIndex &&
+               island_of_[face_vertex(f, i)] == island_of_[face_vertex(f, i + 2)];
+      };
+      if (in_one(0) || in_one(1)) continue;  // dissolved: stays empty
+    }
     for (std::uint32_t i = 0; i < n; ++i) {
       std::uint32_t v = face_vertex(f, i), w = face_wedge(f, i);
       if (island_of_[v] != kInvalidIndex) {

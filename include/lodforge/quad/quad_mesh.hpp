@@ -43,6 +43,10 @@ struct WeldOptions {
   double max_flip_angle_deg = 60.0;  // a face normal may turn by at most this much (< 90)
   // Only check: the weld is rolled back even when valid (the result says whether it would have been made).
   bool dry_run = false;
+  // A quad whose two opposite corners fall in one island vanishes (diagonal collapse: its two pairs of sides
+  // become one edge each) instead of refusing the weld as a folded polygon, and the wedges of those two
+  // corners merge. Off for polychord runs, whose islands never hold a quad's diagonal by design.
+  bool dissolve_diagonal_quads = false;
 };
 
 struct WeldResult {

@@ -2,9 +2,10 @@
 // at 50% and 25% of the input triangles the result stays quad-dominant (quad fraction >= 0.85), validate()
 // is clean, and the mean surface distance is within 1.5x of the triangle engine's at the same triangle count.
 // The larger quad meshes (MakeHuman base, sword) are measured by lodforge_bench_quad instead. Not here
-// because they miss the mean-distance target at 25% (see the benchmark): the small Suzanne (968 triangles,
-// open eye components, 32 triangles to start with) and MakeHuman proxy741 (1460 triangles, many UV seams that
-// rungs may not cross), where keeping 85% quads forces runs across curved regions.
+// because it misses the mean-distance target (see the benchmark and README): the small Suzanne (968
+// triangles, open eye components, 32 triangles to start with), 2.9x the triangle engine's mean at 50% and
+// 2.7x at 25%. Its closed loops each take a tenth of the mesh, and the fitted quad surface has no more
+// vertices than the triangle engine's but cannot place them where the curvature is.
 #include <gtest/gtest.h>
 
 #include <string>
@@ -34,7 +35,9 @@ void expect_quad_lods_meet_targets(const std::string& relative) {
     EXPECT_TRUE(report.ok()) << (report.messages.empty() ? std::string() : report.messages.front());
 
     const SimplifyResult t = simplify(mesh, {.target_triangles = q.triangles_after});
-    ASSERT_EQ(t.triangles_after, q.triangles_after) << "the triangle engine must reach the same count to compare";
+    // The same count, or one collapse fewer (a collapse removes two triangles, one at a border): never more.
+    ASSERT_LE(t.triangles_after, q.triangles_after) << "the triangle engine must reach the count to compare";
+    ASSERT_GE(t.triangles_after + 2, q.triangles_after) << "the triangle engine must reach the count to compare";
     const double quad_mean = evaluate(mesh, q.mesh).mean, triangle_mean = evaluate(mesh, t.mesh).mean;
     EXPECT_LE(quad_mean, 1.5 * triangle_mean) << "polychord mean " << quad_mean << ", edge_collapse mean "
                                               << triangle_mean;
@@ -63,6 +66,12 @@ TEST(PolychordCorpus, BlubStaysQuadDominantAndClose) {
 
 TEST(PolychordCorpus, MakeHumanBodyStaysQuadDominantAndClose) {
   expect_quad_lods_meet_targets("quad/makehuman_male_generic.obj");
+}
+
+// A MakeHuman proxy (1460 triangles, UV seams runs may not cross): at 25% the triangle budget forced loops
+// across the face until diagonal collapses stood in for them (2.07x the triangle engine's mean, now 1.31x).
+TEST(PolychordCorpus, MakeHumanProxyStaysQuadDominantAndClose) {
+  expect_quad_lods_meet_targets("quad/makehuman_proxy741.obj");
 }
 
 }  // namespace

@@ -101,6 +101,33 @@ TEST(Weld, RunOfLInteriorRungsRemovesLMinus1QuadsAndMakesTwoTriangles) {
   }
 }
 
+// A diagonal collapse (dissolve_diagonal_quads): the quad's opposite corners merge and the quad vanishes;
+// every other face stays a quad, the merged vertex gets valence 6 and the other two corners valence 3.
+TEST(Weld, DiagonalCollapseDissolvesTheQuadAndKeepsTheRestQuads) {
+  const Mesh grid = make_quad_grid(8, 5);
+  QuadMesh qm(grid);
+  const std::uint32_t f = 2 * 8 + 3, a = qm.face_vertex(f, 0), c = qm.face_vertex(f, 2);
+  const Vec3d mid = (qm.position(a) + qm.position(c)) * 0.5;
+  // Without the option the quad folds onto itself (A B A C) and the weld is refused, nothing changed.
+  const WeldResult refused = qm.weld({{a, c}}, {mid});
+  EXPECT_EQ(refused.failure, WeldFailure::folded_polygon);
+  EXPECT_EQ(qm.to_mesh(grid), grid);
+
+  const WeldResult w = qm.weld({{a, c}}, {mid}, {.dissolve_diagonal_quads = true});
+  ASSERT_TRUE(w.ok()) << weld_failure_name(w.failure);
+  EXPECT_EQ(w.triangles_removed, 2);
+  EXPECT_FALSE(qm.face_alive(f));
+  const Mesh out = qm.to_mesh(grid);
+  const FaceKindCounts k = count_face_kinds(out);
+  EXPECT_EQ(k.quads, 39u);
+  EXPECT_EQ(k.triangles, 0u);
+  expect_valid(out);
+  EXPECT_EQ(euler(out), euler(grid));
+  EXPECT_EQ(valence_histogram(out, true), (std::map<std::uint32_t, int>{{3, 2}, {4, 24}, {6, 1}}));
+  // The two corners' wedges merged: still one wedge per vertex.
+  EXPECT_EQ(out.wedge_count(), out.vertex_count());
+}
+
 TEST(Weld, ChordEndingInTrianglesCollapsesToPureQuads) {
   // Grid 4 x 3 with the boundary rungs of row 1 already collapsed: row 1 is triangle, 2 quads, triangle.
   Mesh m;
