@@ -1,10 +1,10 @@
 // Fitting moved vertices back to the input surface after the polychord engine.
 //
-//   refit_to_surface(quad_mesh, input_mesh, {});
+//   refit_to_surface(quad_mesh, input_mesh, input_surface_bvh(input_mesh), {});
 //
 // Collapses place each merged vertex at its quadric's minimiser, which bounds the distance to the planes of the
 // faces it absorbed but not to the surface between them: a strip collapse across a curved region leaves the
-// new faces cutting under (or over) it. The fit samples every face (its corners and four points per triangle,
+// new faces cutting under (or over) it. The fit samples every face (its corners and each triangle's centroid,
 // the triangles being those evaluation and output see: quads split along the shorter diagonal), finds each
 // sample's closest point on the input surface, and moves every vertex along its normal by the weighted mean
 // of its samples' offsets (a Jacobi step of least-squares surface fitting, as in Hoppe et al., "Mesh
@@ -16,6 +16,7 @@
 #pragma once
 
 #include "lodforge/core/mesh.hpp"
+#include "lodforge/eval/bvh.hpp"
 #include "lodforge/quad/quad_mesh.hpp"
 
 namespace lodforge::quad {
@@ -28,7 +29,13 @@ struct SurfaceFitOptions {
   double max_step_edges = 0.25;   // a step is at most this fraction of the vertex's shortest edge
 };
 
-// Returns how many vertex steps were taken.
-std::size_t refit_to_surface(QuadMesh& mesh, const Mesh& input, const SurfaceFitOptions& options);
+// The input surface the fit measures against: every valid face of `input` as the triangles the output and
+// the evaluator see. Built apart so that a caller may build it while it does other work (the polychord engine
+// builds it on another core while its collapses run).
+TriangleBvh input_surface_bvh(const Mesh& input);
+
+// Returns how many vertex steps were taken. `input_bvh` is input_surface_bvh(input).
+std::size_t refit_to_surface(QuadMesh& mesh, const Mesh& input, const TriangleBvh& input_bvh,
+                             const SurfaceFitOptions& options);
 
 }  // namespace lodforge::quad
