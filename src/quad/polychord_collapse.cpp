@@ -28,21 +28,18 @@ namespace lodforge::quad {
 namespace {
 
 // conflict[k]: the last rung before k that shares a vertex with rung k, or -1. A run [i, j] is allowed when
-// every conflict[k] for k in [i, j] is below i.
-std::vector<long long> rung_conflicts(const Polychord& p) {
-  std::vector<long long> conflict(p.rungs.size(), -1);
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> at;  // (vertex, rung)
-  for (std::uint32_t k = 0; k < p.rungs.size(); ++k) {
-    at.emplace_back(p.rungs[k][0], k);
-    at.emplace_back(p.rungs[k][1], k);
-  }
-  std::sort(at.begin(), at.end());
-  for (std::size_t i = 1; i < at.size(); ++i) {
-    if (at[i].first == at[i - 1].first) {
-      conflict[at[i].second] = std::max<long long>(conflict[at[i].second], at[i - 1].second);
+// every conflict[k] for k in [i, j] is below i. `last_rung` is scratch indexed by vertex (grown as needed,
+// every entry -1 between calls).
+void rung_conflicts(const Polychord& p, std::vector<long long>& conflict, std::vector<long long>& last_rung) {
+  conflict.assign(p.rungs.size(), -1);
+  for (std::size_t k = 0; k < p.rungs.size(); ++k) {
+    for (std::uint32_t v : p.rungs[k]) {
+      if (v >= last_rung.size()) last_rung.resize(std::size_t{v} + 1, -1);
+      conflict[k] = std::max(conflict[k], last_rung[v]);
+      last_rung[v] = static_cast<long long>(k);
     }
   }
-  return conflict;
+  for (const auto& r : p.rungs) last_rung[r[0]] = last_rung[r[1]] = -1;
 }
 
 // A contiguous run of rungs [first, last] of one chord (all rungs when whole).
@@ -191,6 +188,12 @@ class Engine {
   double held_top();
   double error_bound_ = 0;
   std::size_t collapses_ = 0, rejected_ = 0;
+  struct Scratch {
+    std::vector<double> cost, prefix;
+    std::vector<std::uint8_t> usable, in_run;
+    std::vector<long long> conflict, last_rung;
+  };
+  mutable Scratch scratch_;  // best_candidate()'s arrays
 };
 
 void Engine::setup_quadrics() {
@@ -272,16 +275,24 @@ std::optional<Candidate> Engine::best_candidate(const Chord& chord, long long ca
   const Polychord& p = chord.trace;
   const std::size_t rungs = p.rungs.size(), quads = p.faces.size();
   if (rungs == 0) return std::nullopt;
-  std::vector<double> cost(rungs);
-  std::vector<double> prefix(rungs + 1, 0.0);
-  std::vector<std::uint8_t> usable(rungs), in_run(rungs);  // in_run: usable and not blocked
+  // Scratch reused across calls (the engine is sequential): allocating these per chord was a tenth of the
+  // engine's time on the 100k-quad torus.
+  std::vector<double>& cost = scratch_.cost;
+  std::vector<double>& prefix = scratch_.prefix;
+  std::vector<std::uint8_t>& usable = scratch_.usable;  // finite cost
+  std::vector<std::uint8_t>& in_run = scratch_.in_run;  // usable and not blocked
+  cost.resize(rungs);
+  prefix.assign(rungs + 1, 0.0);
+  usable.resize(rungs);
+  in_run.resize(rungs);
   for (std::size_t k = 0; k < rungs; ++k) {
     cost[k] = rung_cost(p.rungs[k]);
     usable[k] = std::isfinite(cost[k]);
     in_run[k] = usable[k] && (chord.blocked.empty() || chord.blocked[k] == 0);
     prefix[k + 1] = prefix[k] + (usable[k] ? cost[k] : 0.0);
   }
-  const std::vector<long long> conflict = rung_conflicts(p);
+  std::vector<long long>& conflict = scratch_.conflict;
+  rung_conflicts(p, conflict, scratch_.last_rung);
   // What an open end of a run does: in a quad, turns it into a triangle (removes 1, leaves 1); at a triangle
   // the chord ends in, deletes it (removes 1, closes 1); at a boundary, nothing.
   auto end_effect = [&](bool inner, int side) -> std::pair<int, int> {  // (removed, triangles left)
@@ -750,7 +761,8 @@ PolychordResult Engine::collapse() {
 
 bool run_allowed(const Polychord& chord, std::size_t first, std::size_t last) {
   if (first > last || last >= chord.rungs.size()) return false;
-  const std::vector<long long> conflict = rung_conflicts(chord);
+  std::vector<long long> conflict, last_rung;
+  rung_conflicts(chord, conflict, last_rung);
   for (std::size_t k = first; k <= last; ++k) {
     if (conflict[k] >= static_cast<long long>(first)) return false;
   }

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <span>
 #include <tuple>
 
 namespace lodforge::quad {
@@ -46,7 +47,7 @@ std::uint32_t find_root(std::vector<std::uint32_t>& parent, std::uint32_t x) {
 }
 
 // Newell normal of a polygon given by positions.
-Vec3d newell(const std::vector<Vec3d>& p) {
+Vec3d newell(std::span<const Vec3d> p) {
   Vec3d n{};
   for (std::size_t i = 0; i < p.size(); ++i) {
     const Vec3d& a = p[i];
@@ -59,7 +60,7 @@ Vec3d newell(const std::vector<Vec3d>& p) {
 }
 
 // Whether corner i of polygon p turns the same way as normal n (convex corner).
-bool corner_convex(const std::vector<Vec3d>& p, std::size_t i, const Vec3d& n) {
+bool corner_convex(std::span<const Vec3d> p, std::size_t i, const Vec3d& n) {
   const std::size_t k = p.size();
   const Vec3d c = cross(p[(i + 1) % k] - p[i], p[(i + k - 1) % k] - p[i]);
   return dot(c, n) > 0.0;
@@ -68,20 +69,24 @@ bool corner_convex(const std::vector<Vec3d>& p, std::size_t i, const Vec3d& n) {
 }  // namespace
 
 // Everything a weld changes, to put back on failure.
+// Flat arrays (a weld makes a few allocations, not a few per face and vertex: the weld was the polychord
+// engine's largest cost on the 100k-quad torus, a third of it in the allocator).
 struct QuadMesh::Undo {
   struct Face {
-    std::uint32_t id, size;
-    std::vector<std::uint32_t> vertices, wedges;
-    std::vector<Vec3d> points;  // corner positions before the weld (for the flip test)
+    std::uint32_t id, size, begin;  // corners [begin, begin + size) of the arrays below
   };
   std::vector<Face> faces;
+  std::vector<std::uint32_t> corner_vertices, corner_wedges;
+  std::vector<Vec3d> corner_points;  // corner positions before the weld (for the flip test)
+  std::span<const Vec3d> points(const Face& f) const { return {corner_points.data() + f.begin, f.size}; }
   struct Vertex {
     std::uint32_t id;
     Vec3d position;
     std::uint8_t dead, moved;
-    std::vector<std::uint32_t> faces;
+    std::uint32_t faces_begin, faces_size;  // into vertex_faces
   };
   std::vector<Vertex> vertices;
+  std::vector<std::uint32_t> vertex_faces;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> wedge_vertex;  // (wedge, vertex before)
   std::size_t triangles = 0, triangle_faces = 0;
   long long edges_before = 0;
@@ -132,29 +137,38 @@ QuadMesh::QuadMesh(const Mesh& mesh) {
     }
   }
 
-  // Non-manifold and inconsistently oriented edges: sort the directed sides by undirected edge.
-  std::vector<std::pair<std::uint64_t, bool>> sides;  // (edge, forward)
+  // Non-manifold and inconsistently oriented edges lock both their ends; so do vertices whose faces do not
+  // form one disc or half-disc.
+  across_.assign(corner_vertex_.size(), Across{});
   for (std::uint32_t f = 0; f < nf; ++f) {
     const std::uint32_t n = face_size_[f];
     for (std::uint32_t i = 0; i < n; ++i) {
-      const std::uint32_t a = face_vertex(f, i), b = face_vertex(f, (i + 1) % n);
-      sides.emplace_back(edge_key(a, b), a < b);
+      const Across a = across_[face_begin_[f] + i] = find_across(f, i);
+      if (a.kind == Across::non_manifold) {
+        locked_[face_vertex(f, i)] = 1;
+        locked_[face_vertex(f, (i + 1) % n)] = 1;
+      }
     }
-  }
-  std::sort(sides.begin(), sides.end());
-  for (std::size_t i = 0; i < sides.size();) {
-    std::size_t j = i;
-    int forward = 0, backward = 0;
-    for (; j < sides.size() && sides[j].first == sides[i].first; ++j) (sides[j].second ? forward : backward)++;
-    if (forward > 1 || backward > 1) {
-      locked_[sides[i].first >> 32] = 1;
-      locked_[sides[i].first & 0xffffffffu] = 1;
-    }
-    i = j;
   }
   for (std::uint32_t v = 0; v < nv; ++v) {
     if (!vertex_faces_[v].empty() && !fan_is_single(v)) locked_[v] = 1;
   }
+  vertex_mark_.assign(nv, 0);
+}
+
+// A side's neighbour changes only when a face gains or loses that edge, and such a face is one the weld
+// rewrote: both ends of the edge are then vertices of a rewritten face (before or after), which the caller
+// passes in. Sides of other faces along such an edge are refreshed too, through the vertices' face lists.
+void QuadMesh::refresh_across(const std::vector<std::uint32_t>& vertices) {
+  for (std::uint32_t v : vertices) vertex_mark_[v] = 1;
+  for (std::uint32_t v : vertices) {
+    if (vertex_dead_[v]) continue;
+    for (std::uint32_t f : vertex_faces_[v]) {
+      const std::uint32_t n = face_size_[f], i = corner_of(f, v);
+      if (vertex_mark_[face_vertex(f, (i + 1) % n)]) across_[face_begin_[f] + i] = find_across(f, i);
+    }
+  }
+  for (std::uint32_t v : vertices) vertex_mark_[v] = 0;
 }
 
 FaceKindCounts QuadMesh::face_kinds() const {
@@ -175,7 +189,7 @@ std::uint32_t QuadMesh::corner_of(std::uint32_t f, std::uint32_t v) const {
   return kInvalidIndex;
 }
 
-QuadMesh::Across QuadMesh::across(std::uint32_t f, std::uint32_t side) const {
+QuadMesh::Across QuadMesh::find_across(std::uint32_t f, std::uint32_t side) const {
   const std::uint32_t n = face_size_[f];
   const std::uint32_t x = face_vertex(f, side), y = face_vertex(f, (side + 1) % n);
   Across result;
@@ -277,11 +291,16 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
   std::sort(affected.begin(), affected.end());
   affected.erase(std::unique(affected.begin(), affected.end()), affected.end());
 
-  auto wedge_count_of = [&](std::uint32_t v) {
-    std::vector<std::uint32_t> ws;
-    for (std::uint32_t f : vertex_faces_[v]) ws.push_back(face_wedge(f, corner_of(f, v)));
-    std::sort(ws.begin(), ws.end());
-    return static_cast<std::size_t>(std::unique(ws.begin(), ws.end()) - ws.begin());
+  auto wedge_count_of = [&](std::uint32_t v) {  // distinct wedges of v's corners (fans are small)
+    const std::vector<std::uint32_t>& fan = vertex_faces_[v];
+    std::size_t count = 0;
+    for (std::size_t i = 0; i < fan.size(); ++i) {
+      const std::uint32_t w = face_wedge(fan[i], corner_of(fan[i], v));
+      bool seen = false;
+      for (std::size_t j = 0; j < i && !seen; ++j) seen = face_wedge(fan[j], corner_of(fan[j], v)) == w;
+      if (!seen) ++count;
+    }
+    return count;
   };
   std::vector<std::uint32_t>& survivors = result.survivors;
   std::vector<Vec3d> targets = island_positions;
@@ -369,16 +388,22 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
   }
 
   // 3. New corner lists, before anything is written (a folded polygon refuses the whole weld).
-  std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> new_faces(affected.size());  // (vertex, wedge)
+  // Face k's new corners are new_corners[new_begin[k], new_begin[k + 1]) as (vertex, wedge).
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> new_corners;
+  std::vector<std::uint32_t> new_begin(affected.size() + 1, 0);
   for (std::size_t k = 0; k < affected.size(); ++k) {
     const std::uint32_t f = affected[k], n = face_size_[f];
-    auto& poly = new_faces[k];
+    const std::size_t begin = new_corners.size();
+    const auto close = [&] { new_begin[k + 1] = static_cast<std::uint32_t>(new_corners.size()); };
     if (n == 4 && options.dissolve_diagonal_quads) {
       const auto in_one = [&](std::uint32_t i) {
         return island_of_[face_vertex(f, i)] != kInvalidIndex &&
                island_of_[face_vertex(f, i)] == island_of_[face_vertex(f, i + 2)];
       };
-      if (in_one(0) || in_one(1)) continue;  // dissolved: stays empty
+      if (in_one(0) || in_one(1)) {  // dissolved: no corners
+        close();
+        continue;
+      }
     }
     for (std::uint32_t i = 0; i < n; ++i) {
       std::uint32_t v = face_vertex(f, i), w = face_wedge(f, i);
@@ -386,13 +411,19 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
         v = survivors[island_of_[v]];
         w = wedge_target(w);
       }
-      if (poly.empty() || poly.back().first != v) poly.emplace_back(v, w);
+      if (new_corners.size() == begin || new_corners.back().first != v) new_corners.emplace_back(v, w);
     }
-    while (poly.size() > 1 && poly.front().first == poly.back().first) poly.pop_back();
-    if (poly.size() < 3) {
-      poly.clear();
+    while (new_corners.size() > begin + 1 && new_corners[begin].first == new_corners.back().first) {
+      new_corners.pop_back();
+    }
+    if (new_corners.size() < begin + 3) {
+      new_corners.resize(begin);
+      close();
       continue;
     }
+    close();
+    const std::span<const std::pair<std::uint32_t, std::uint32_t>> poly(new_corners.data() + begin,
+                                                                         new_corners.size() - begin);
     for (std::size_t i = 0; i < poly.size(); ++i) {
       for (std::size_t j = i + 1; j < poly.size(); ++j) {
         if (poly[i].first == poly[j].first) {
@@ -410,19 +441,25 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
   undo.triangle_faces = triangle_faces_;
   undo.edges_before = local_euler_edges(affected);
   std::vector<std::uint32_t> touched;  // every vertex of an affected face
+  undo.faces.reserve(affected.size());
   for (std::uint32_t f : affected) {
-    Undo::Face u{f, face_size_[f], {}, {}, {}};
+    undo.faces.push_back({f, face_size_[f], static_cast<std::uint32_t>(undo.corner_vertices.size())});
     for (std::uint32_t i = 0; i < face_size_[f]; ++i) {
-      u.vertices.push_back(face_vertex(f, i));
-      u.wedges.push_back(face_wedge(f, i));
-      u.points.push_back(positions_[face_vertex(f, i)]);
+      undo.corner_vertices.push_back(face_vertex(f, i));
+      undo.corner_wedges.push_back(face_wedge(f, i));
+      undo.corner_points.push_back(positions_[face_vertex(f, i)]);
       touched.push_back(face_vertex(f, i));
     }
-    undo.faces.push_back(std::move(u));
   }
   std::sort(touched.begin(), touched.end());
   touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
-  for (std::uint32_t v : touched) undo.vertices.push_back({v, positions_[v], vertex_dead_[v], moved_[v], vertex_faces_[v]});
+  undo.vertices.reserve(touched.size());
+  for (std::uint32_t v : touched) {
+    undo.vertices.push_back({v, positions_[v], vertex_dead_[v], moved_[v],
+                             static_cast<std::uint32_t>(undo.vertex_faces.size()),
+                             static_cast<std::uint32_t>(vertex_faces_[v].size())});
+    undo.vertex_faces.insert(undo.vertex_faces.end(), vertex_faces_[v].begin(), vertex_faces_[v].end());
+  }
   // Old edges between two vertices outside the islands may survive in faces the weld does not touch.
   std::vector<std::uint64_t> outside_edges;
   for (std::uint32_t f : affected) {
@@ -438,7 +475,7 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
     const std::uint32_t f = affected[k];
     triangles_ -= face_size_[f] - 2;
     if (face_size_[f] == 3) --triangle_faces_;
-    face_size_[f] = static_cast<std::uint32_t>(new_faces[k].size());
+    face_size_[f] = new_begin[k + 1] - new_begin[k];
     if (face_size_[f] == 0) {
       ++undo.killed_faces;
       continue;
@@ -446,8 +483,8 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
     triangles_ += face_size_[f] - 2;
     if (face_size_[f] == 3) ++triangle_faces_;
     for (std::uint32_t i = 0; i < face_size_[f]; ++i) {
-      corner_vertex_[face_begin_[f] + i] = new_faces[k][i].first;
-      corner_wedge_[face_begin_[f] + i] = new_faces[k][i].second;
+      corner_vertex_[face_begin_[f] + i] = new_corners[new_begin[k] + i].first;
+      corner_wedge_[face_begin_[f] + i] = new_corners[new_begin[k] + i].second;
     }
   }
   for (std::uint32_t k = 0; k < islands.size(); ++k) {
@@ -528,6 +565,7 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
     result.survivors.clear();
     return result;
   }
+  refresh_across(touched);
   result.faces = affected;
   result.triangles_removed = static_cast<long long>(undo.triangles) - static_cast<long long>(triangles_);
   return result;
@@ -551,15 +589,16 @@ WeldFailure QuadMesh::check_after_weld(const std::vector<std::uint32_t>& faces,
     }
   }
   // Duplicates: faces with the same vertex set share their lowest vertex.
+  std::vector<std::uint32_t> key, other;
   for (std::uint32_t f : faces) {
     const std::uint32_t n = face_size_[f];
     if (n == 0) continue;
-    std::vector<std::uint32_t> key(n);
+    key.resize(n);
     for (std::uint32_t i = 0; i < n; ++i) key[i] = face_vertex(f, i);
     std::sort(key.begin(), key.end());
     for (std::uint32_t g : vertex_faces_[key[0]]) {
       if (g == f || face_size_[g] != n) continue;
-      std::vector<std::uint32_t> other(n);
+      other.resize(n);
       for (std::uint32_t i = 0; i < n; ++i) other[i] = face_vertex(g, i);
       std::sort(other.begin(), other.end());
       if (other == key) return WeldFailure::duplicate_face;
@@ -570,18 +609,19 @@ WeldFailure QuadMesh::check_after_weld(const std::vector<std::uint32_t>& faces,
   }
   // Geometry: no face turns by more than the allowed angle, degenerates, or gets a new concave corner.
   const double cos_max = std::cos(options.max_flip_angle_deg * std::numbers::pi / 180.0);
+  std::vector<Vec3d> p;
   for (const Undo::Face& old : undo.faces) {
     const std::uint32_t f = old.id, n = face_size_[f];
     if (n == 0) continue;
-    std::vector<Vec3d> p(n);
+    p.resize(n);
     for (std::uint32_t i = 0; i < n; ++i) p[i] = positions_[face_vertex(f, i)];
-    const Vec3d n_old = newell(old.points), n_new = newell(p);
+    const Vec3d n_old = newell(undo.points(old)), n_new = newell(p);
     const double l_old = length(n_old), l_new = length(n_new);
     if (!(l_new > 1e-12 * l_old) || !(l_new > 0.0)) return WeldFailure::degenerate;
     if (dot(n_old, n_new) < cos_max * l_old * l_new) return WeldFailure::flipped;
     if (n == 4 && old.size == 4) {
       for (std::uint32_t i = 0; i < 4; ++i) {
-        if (corner_convex(old.points, i, n_old) && !corner_convex(p, i, n_old)) return WeldFailure::flipped;
+        if (corner_convex(undo.points(old), i, n_old) && !corner_convex(p, i, n_old)) return WeldFailure::flipped;
       }
     }
   }
@@ -592,15 +632,16 @@ void QuadMesh::rollback(const Undo& undo) {
   for (const Undo::Face& u : undo.faces) {
     face_size_[u.id] = u.size;
     for (std::uint32_t i = 0; i < u.size; ++i) {
-      corner_vertex_[face_begin_[u.id] + i] = u.vertices[i];
-      corner_wedge_[face_begin_[u.id] + i] = u.wedges[i];
+      corner_vertex_[face_begin_[u.id] + i] = undo.corner_vertices[u.begin + i];
+      corner_wedge_[face_begin_[u.id] + i] = undo.corner_wedges[u.begin + i];
     }
   }
   for (const Undo::Vertex& u : undo.vertices) {
     positions_[u.id] = u.position;
     vertex_dead_[u.id] = u.dead;
     moved_[u.id] = u.moved;
-    vertex_faces_[u.id] = u.faces;
+    const auto first = undo.vertex_faces.begin() + u.faces_begin;
+    vertex_faces_[u.id].assign(first, first + u.faces_size);
   }
   for (const auto& [w, v] : undo.wedge_vertex) wedge_vertex_[w] = v;
   triangles_ = undo.triangles;

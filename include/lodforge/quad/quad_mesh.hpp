@@ -93,7 +93,8 @@ class QuadMesh {
     std::uint32_t face_id = kInvalidIndex;  // the neighbour when kind == face
     std::uint32_t side = 0;                 // its side on the shared edge
   };
-  Across across(std::uint32_t f, std::uint32_t side) const;
+  // O(1): read from a table kept up to date by weld() (polychord tracing asks this for every quad it passes).
+  Across across(std::uint32_t f, std::uint32_t side) const { return across_[face_begin_[f] + side]; }
   // Position of vertex v in face f, or kInvalidIndex.
   std::uint32_t corner_of(std::uint32_t f, std::uint32_t v) const;
   // Newell normal of face f (area-weighted, not normalised).
@@ -123,6 +124,9 @@ class QuadMesh {
                                const Undo& undo, const WeldOptions& options) const;
   void rollback(const Undo& undo);
   bool fan_is_single(std::uint32_t v) const;
+  Across find_across(std::uint32_t f, std::uint32_t side) const;  // from the vertex face lists
+  // Recomputes across() for every side of an alive face whose two ends are both in `vertices`.
+  void refresh_across(const std::vector<std::uint32_t>& vertices);
   long long local_euler_edges(const std::vector<std::uint32_t>& faces) const;
 
   std::vector<Vec3d> positions_;
@@ -131,9 +135,11 @@ class QuadMesh {
   std::vector<std::uint32_t> face_begin_, face_size_, face_material_;
   std::vector<std::uint32_t> corner_vertex_, corner_wedge_;
   std::vector<std::vector<std::uint32_t>> vertex_faces_;  // ascending face ids
+  std::vector<Across> across_;                            // per corner slot (face_begin_[f] + side)
   std::size_t triangles_ = 0, triangle_faces_ = 0;
   // Weld scratch, indexed by vertex / wedge; reset after each use.
   std::vector<std::uint32_t> island_of_, wedge_parent_;
+  std::vector<std::uint8_t> vertex_mark_;
 };
 
 }  // namespace lodforge::quad
