@@ -180,6 +180,8 @@ class Engine {
   std::vector<std::array<std::uint32_t, 2>> face_chord_;
   std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> queue_;
   std::vector<std::uint32_t> face_version_;
+  std::vector<std::uint32_t> face_stamp_;  // invalidate_around()'s marks
+  std::uint32_t stamp_ = 0;
   std::priority_queue<DiagonalEntry, std::vector<DiagonalEntry>, std::greater<DiagonalEntry>> diagonals_;
   std::size_t diagonal_collapses_ = 0;
   bool diagonals_scored_ = false;  // diagonals_ holds every quad's diagonals (see run())
@@ -607,15 +609,21 @@ void Engine::retrace(std::uint32_t id) {
 // length, its ends, its validity): those go stale. Faces that stopped being quads leave their chords; faces
 // that became quads (an n-gon losing a corner) start new ones.
 void Engine::invalidate_around(const WeldResult& w) {
-  std::vector<std::uint32_t> faces = w.faces;
+  // The faces, each once (a stamp per face instead of sorting the duplicates away), in ascending order.
+  std::vector<std::uint32_t> faces;
+  ++stamp_;
+  auto add = [&](std::uint32_t f) {
+    if (face_stamp_[f] == stamp_) return;
+    face_stamp_[f] = stamp_;
+    faces.push_back(f);
+  };
+  for (std::uint32_t f : w.faces) add(f);
   for (std::uint32_t f : w.faces) {
     for (std::uint32_t i = 0; i < qm_.face_size(f); ++i) {
-      const auto& around = qm_.vertex_faces(qm_.face_vertex(f, i));
-      faces.insert(faces.end(), around.begin(), around.end());
+      for (std::uint32_t g : qm_.vertex_faces(qm_.face_vertex(f, i))) add(g);
     }
   }
   std::sort(faces.begin(), faces.end());
-  faces.erase(std::unique(faces.begin(), faces.end()), faces.end());
   for (std::uint32_t f : faces) {
     for (std::uint32_t& id : face_chord_[f]) {
       if (id == kInvalidIndex) continue;
@@ -659,6 +667,7 @@ PolychordResult Engine::collapse() {
   result.quads_before = qm_.face_kinds().quads;
   face_chord_.assign(qm_.face_slots(), {kInvalidIndex, kInvalidIndex});
   face_version_.assign(qm_.face_slots(), 0);
+  face_stamp_.assign(qm_.face_slots(), 0);
   for (std::uint32_t f = 0; f < qm_.face_slots(); ++f) {
     if (qm_.face_size(f) != 4) continue;
     for (int d = 0; d < 2; ++d) {

@@ -506,17 +506,20 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
       wedge_vertex_[w] = survivors[k];
     }
   }
+  // Survivors get the alive affected faces they are a corner of (every face of an island vertex is affected;
+  // `affected` is ascending, so the lists stay sorted); other vertices lose their dead faces.
   for (std::uint32_t v : touched) {
     std::vector<std::uint32_t>& list = vertex_faces_[v];
-    if (vertex_dead_[v]) {
+    if (vertex_dead_[v] || island_of_[v] != kInvalidIndex) {
       list.clear();
-    } else if (island_of_[v] != kInvalidIndex) {
-      list.clear();
-      for (std::uint32_t f : affected) {
-        if (face_size_[f] != 0 && corner_of(f, v) != kInvalidIndex) list.push_back(f);
-      }
     } else {
       std::erase_if(list, [&](std::uint32_t f) { return face_size_[f] == 0; });
+    }
+  }
+  for (std::uint32_t f : affected) {
+    for (std::uint32_t i = 0; i < face_size_[f]; ++i) {
+      const std::uint32_t v = face_vertex(f, i);
+      if (island_of_[v] != kInvalidIndex) vertex_faces_[v].push_back(f);
     }
   }
 
