@@ -4,6 +4,7 @@
 #include "lodforge/quad/quad_mesh.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 #include <span>
@@ -46,17 +47,22 @@ std::uint32_t find_root(std::vector<std::uint32_t>& parent, std::uint32_t x) {
   return x;
 }
 
-// Newell normal of a polygon given by positions.
-Vec3d newell(std::span<const Vec3d> p) {
+// Newell normal of a polygon of `count` corners, corner i at point(i).
+template <class Point>
+Vec3d newell_of(std::size_t count, Point&& point) {
   Vec3d n{};
-  for (std::size_t i = 0; i < p.size(); ++i) {
-    const Vec3d& a = p[i];
-    const Vec3d& b = p[(i + 1) % p.size()];
+  for (std::size_t i = 0; i < count; ++i) {
+    const Vec3d& a = point(i);
+    const Vec3d& b = point((i + 1) % count);
     n[0] += (a[1] - b[1]) * (a[2] + b[2]);
     n[1] += (a[2] - b[2]) * (a[0] + b[0]);
     n[2] += (a[0] - b[0]) * (a[1] + b[1]);
   }
   return n;
+}
+
+Vec3d newell(std::span<const Vec3d> p) {
+  return newell_of(p.size(), [&](std::size_t i) -> const Vec3d& { return p[i]; });
 }
 
 // Whether corner i of polygon p turns the same way as normal n (convex corner).
@@ -213,9 +219,9 @@ QuadMesh::Across QuadMesh::find_across(std::uint32_t f, std::uint32_t side) cons
 }
 
 Vec3d QuadMesh::face_normal(std::uint32_t f) const {
-  std::vector<Vec3d> p(face_size_[f]);
-  for (std::uint32_t i = 0; i < p.size(); ++i) p[i] = positions_[face_vertex(f, i)];
-  return newell(p);
+  return newell_of(face_size_[f], [&](std::size_t i) -> const Vec3d& {
+    return positions_[face_vertex(f, static_cast<std::uint32_t>(i))];
+  });
 }
 
 // A vertex fan is a single disc or half-disc when its faces, linked through shared spokes (this face's edge
@@ -224,7 +230,21 @@ bool QuadMesh::fan_is_single(std::uint32_t v) const {
   const std::vector<std::uint32_t>& fan = vertex_faces_[v];
   const std::size_t n = fan.size();
   if (n <= 1) return true;
-  std::vector<std::uint32_t> out_spoke(n), in_spoke(n), parent(n);
+  // Fans of up to kSmall faces (nearly all) live on the stack: this runs for every vertex a weld touches.
+  constexpr std::size_t kSmall = 16;
+  std::array<std::uint32_t, 3 * kSmall> small;
+  std::vector<std::uint32_t> large(n > kSmall ? 3 * n : 0);
+  std::uint32_t* const base = n > kSmall ? large.data() : small.data();
+  std::uint32_t* const out_spoke = base;
+  std::uint32_t* const in_spoke = base + n;
+  std::uint32_t* const parent = base + 2 * n;
+  auto find_root = [parent](std::uint32_t x) {
+    while (parent[x] != x) {
+      parent[x] = parent[parent[x]];
+      x = parent[x];
+    }
+    return x;
+  };
   for (std::size_t k = 0; k < n; ++k) {
     const std::uint32_t f = fan[k], m = face_size_[f], i = corner_of(f, v);
     out_spoke[k] = face_vertex(f, (i + 1) % m);
@@ -235,8 +255,8 @@ bool QuadMesh::fan_is_single(std::uint32_t v) const {
   for (std::size_t a = 0; a < n; ++a) {
     for (std::size_t b = 0; b < n; ++b) {
       if (a == b || out_spoke[a] != in_spoke[b]) continue;
-      const std::uint32_t ra = find_root(parent, static_cast<std::uint32_t>(a));
-      const std::uint32_t rb = find_root(parent, static_cast<std::uint32_t>(b));
+      const std::uint32_t ra = find_root(static_cast<std::uint32_t>(a));
+      const std::uint32_t rb = find_root(static_cast<std::uint32_t>(b));
       if (ra != rb) {
         parent[ra] = rb;
         --components;
