@@ -55,7 +55,7 @@ ChordEnd walk(const QuadMesh& m, std::uint32_t face, std::uint32_t exit, std::ui
 
 }  // namespace
 
-Polychord trace_polychord(const QuadMesh& m, std::uint32_t face, int direction) {
+Polychord trace_polychord(const QuadMesh& m, std::uint32_t face, int direction, TraceScratch& scratch) {
   Polychord chord;
   const std::uint32_t d = static_cast<std::uint32_t>(direction);
   std::vector<Step> forward, backward;
@@ -65,17 +65,22 @@ Polychord trace_polychord(const QuadMesh& m, std::uint32_t face, int direction) 
   if (fwd == ChordEnd::closed) {
     chord.closed = true;
     chord.ends = {ChordEnd::closed, ChordEnd::closed};
+    steps.reserve(forward.size() + 1);
     steps.push_back({face, d});
     steps.insert(steps.end(), forward.begin(), forward.end());
   } else {
     const ChordEnd bwd = walk(m, face, d, face, direction, backward, end_backward);
     // The backward walk enters each quad through the side facing the start; flip it to the forward entry.
+    steps.reserve(backward.size() + forward.size() + 1);
     for (auto it = backward.rbegin(); it != backward.rend(); ++it) steps.push_back({it->face, (it->entry + 2) % 4});
     steps.push_back({face, d});
     steps.insert(steps.end(), forward.begin(), forward.end());
     chord.ends = {bwd, fwd};
     chord.end_faces = {end_backward, end_forward};
   }
+  chord.faces.reserve(steps.size());
+  chord.directions.reserve(steps.size());
+  chord.rungs.reserve(steps.size() + 1);
   for (const Step& s : steps) {
     chord.faces.push_back(s.face);
     chord.directions.push_back(static_cast<std::uint8_t>(s.entry % 2));
@@ -84,24 +89,40 @@ Polychord trace_polychord(const QuadMesh& m, std::uint32_t face, int direction) 
   if (!chord.closed) chord.rungs.push_back(side_vertices(m, steps.back().face, (steps.back().entry + 2) % 4));
 
   // Self-intersection: a quad visited in both directions. Self-touching: two rungs sharing a vertex.
-  std::vector<std::uint32_t> visited = chord.faces;
-  std::sort(visited.begin(), visited.end());
-  chord.self_intersecting = std::adjacent_find(visited.begin(), visited.end()) != visited.end();
-  std::vector<std::uint32_t> rung_vertices;
-  for (const auto& r : chord.rungs) rung_vertices.insert(rung_vertices.end(), r.begin(), r.end());
-  std::sort(rung_vertices.begin(), rung_vertices.end());
-  chord.self_touching = std::adjacent_find(rung_vertices.begin(), rung_vertices.end()) != rung_vertices.end();
+  if (scratch.face_mark.size() < m.face_slots()) scratch.face_mark.resize(m.face_slots(), 0);
+  if (scratch.vertex_mark.size() < m.vertex_count()) scratch.vertex_mark.resize(m.vertex_count(), 0);
+  if (++scratch.stamp == 0) {  // wrapped: clear the marks once
+    std::fill(scratch.face_mark.begin(), scratch.face_mark.end(), 0);
+    std::fill(scratch.vertex_mark.begin(), scratch.vertex_mark.end(), 0);
+    scratch.stamp = 1;
+  }
+  for (std::uint32_t f : chord.faces) {
+    if (scratch.face_mark[f] == scratch.stamp) chord.self_intersecting = true;
+    scratch.face_mark[f] = scratch.stamp;
+  }
+  for (const auto& r : chord.rungs) {
+    for (std::uint32_t v : r) {
+      if (scratch.vertex_mark[v] == scratch.stamp) chord.self_touching = true;
+      scratch.vertex_mark[v] = scratch.stamp;
+    }
+  }
   return chord;
+}
+
+Polychord trace_polychord(const QuadMesh& m, std::uint32_t face, int direction) {
+  TraceScratch scratch;
+  return trace_polychord(m, face, direction, scratch);
 }
 
 PolychordSet trace_polychords(const QuadMesh& m) {
   PolychordSet set;
+  TraceScratch scratch;
   set.face_chord.assign(m.face_slots(), {kInvalidIndex, kInvalidIndex});
   for (std::uint32_t f = 0; f < m.face_slots(); ++f) {
     if (m.face_size(f) != 4) continue;
     for (int d = 0; d < 2; ++d) {
       if (set.face_chord[f][d] != kInvalidIndex) continue;
-      Polychord chord = trace_polychord(m, f, d);
+      Polychord chord = trace_polychord(m, f, d, scratch);
       const auto id = static_cast<std::uint32_t>(set.chords.size());
       for (std::size_t k = 0; k < chord.faces.size(); ++k) set.face_chord[chord.faces[k]][chord.directions[k]] = id;
       set.chords.push_back(std::move(chord));

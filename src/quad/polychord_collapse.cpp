@@ -196,6 +196,7 @@ class Engine {
     std::vector<long long> conflict, last_rung;
   };
   mutable Scratch scratch_;  // best_candidate()'s arrays
+  TraceScratch trace_scratch_;
 };
 
 void Engine::setup_quadrics() {
@@ -575,7 +576,7 @@ void Engine::push(std::uint32_t id) {
 void Engine::trace_from(std::uint32_t face, int direction) {
   const auto id = static_cast<std::uint32_t>(chords_.size());
   Chord chord;
-  chord.trace = trace_polychord(qm_, face, direction);
+  chord.trace = trace_polychord(qm_, face, direction, trace_scratch_);
   for (std::size_t k = 0; k < chord.trace.faces.size(); ++k) {
     face_chord_[chord.trace.faces[k]][chord.trace.directions[k]] = id;
   }

@@ -10,6 +10,8 @@
 #include <span>
 #include <tuple>
 
+#include <tbb/parallel_for.h>
+
 namespace lodforge::quad {
 
 const char* weld_failure_name(WeldFailure f) {
@@ -145,19 +147,26 @@ QuadMesh::QuadMesh(const Mesh& mesh) {
 
   // Non-manifold and inconsistently oriented edges lock both their ends; so do vertices whose faces do not
   // form one disc or half-disc.
+  // (Both scans read only and write one entry per face side or vertex: in parallel.)
   across_.assign(corner_vertex_.size(), Across{});
+  tbb::parallel_for(std::size_t{0}, nf, [&](std::size_t face) {
+    const auto f = static_cast<std::uint32_t>(face);
+    for (std::uint32_t i = 0; i < face_size_[f]; ++i) across_[face_begin_[f] + i] = find_across(f, i);
+  });
+  std::vector<std::uint8_t> pinched(nv, 0);
+  tbb::parallel_for(std::size_t{0}, nv, [&](std::size_t v) {
+    pinched[v] = !vertex_faces_[v].empty() && !fan_is_single(static_cast<std::uint32_t>(v));
+  });
   for (std::uint32_t f = 0; f < nf; ++f) {
     const std::uint32_t n = face_size_[f];
     for (std::uint32_t i = 0; i < n; ++i) {
-      const Across a = across_[face_begin_[f] + i] = find_across(f, i);
-      if (a.kind == Across::non_manifold) {
-        locked_[face_vertex(f, i)] = 1;
-        locked_[face_vertex(f, (i + 1) % n)] = 1;
-      }
+      if (across_[face_begin_[f] + i].kind != Across::non_manifold) continue;
+      locked_[face_vertex(f, i)] = 1;
+      locked_[face_vertex(f, (i + 1) % n)] = 1;
     }
   }
-  for (std::uint32_t v = 0; v < nv; ++v) {
-    if (!vertex_faces_[v].empty() && !fan_is_single(v)) locked_[v] = 1;
+  for (std::size_t v = 0; v < nv; ++v) {
+    if (pinched[v]) locked_[v] = 1;
   }
   vertex_mark_.assign(nv, 0);
 }

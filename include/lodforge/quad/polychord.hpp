@@ -51,6 +51,14 @@ struct Polychord {
 // some k (q_0 when the chord is closed). Requires face to be an alive quad.
 Polychord trace_polychord(const QuadMesh& mesh, std::uint32_t face, int direction);
 
+// Scratch for tracing many chords of one mesh: the self-intersection and self-touching tests mark faces and
+// vertices instead of sorting the chord's lists (the polychord engine traces about two chords per collapse).
+struct TraceScratch {
+  std::vector<std::uint32_t> face_mark, vertex_mark;
+  std::uint32_t stamp = 0;
+};
+Polychord trace_polychord(const QuadMesh& mesh, std::uint32_t face, int direction, TraceScratch& scratch);
+
 struct PolychordSet {
   std::vector<Polychord> chords;
   // Chord id of each face per direction; kInvalidIndex for non-quads and dead faces.
