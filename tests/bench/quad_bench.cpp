@@ -122,6 +122,9 @@ int main(int argc, char** argv) {
   app.add_option("--generated-quads", generated_quads, "quads of the generated torus")->capture_default_str();
   app.add_flag("--no-generated", no_generated, "skip the generated torus");
   app.add_option("--eval-samples", eval_samples, "area samples per direction (0 = eval's default)");
+  int repeats = 5;
+  app.add_option("--repeats", repeats, "timed runs per engine for the speed target (median)")->capture_default_str()
+      ->check(CLI::Range(1, 100));
   CLI11_PARSE(app, argc, argv);
 
   if (mesh_files.empty()) {
@@ -203,9 +206,29 @@ int main(int argc, char** argv) {
                       tri.mean_rel > 0 ? quad.mean_rel / tri.mean_rel : 0.0);
         checks.push_back({line, quad.mean_rel <= 1.5 * tri.mean_rel});
       } else {
-        std::snprintf(line, sizeof line, "%s to 25%% in < 5x the triangle engine's time: %.0f ms vs %.0f ms (%.2fx)",
-                      mesh.name.c_str(), quad.ms, tri.ms, quad.ms / tri.ms);
-        checks.push_back({line, quad.ms < 5.0 * tri.ms});
+        // The rows above are each engine's first run in this process, and the polychord engine runs first:
+        // it pays the page faults of fresh memory and the thread pool's start, the triangle engine then reuses
+        // both (measured: triangle engine 283 ms cold, 145 ms warm). The target compares like with like: the
+        // median of `repeats` runs each, alternating, after the runs above warmed both.
+        std::vector<double> quad_ms, tri_ms;
+        for (int k = 0; k < repeats; ++k) {
+          auto t1 = Clock::now();
+          (void)simplify(mesh, qo);
+          quad_ms.push_back(ms_since(t1));
+          t1 = Clock::now();
+          (void)simplify(mesh, {.target_triangles = q.triangles_after});
+          tri_ms.push_back(ms_since(t1));
+        }
+        auto median = [](std::vector<double> v) {
+          std::sort(v.begin(), v.end());
+          return v[v.size() / 2];
+        };
+        const double qm = median(quad_ms), tm = median(tri_ms);
+        std::snprintf(line, sizeof line,
+                      "%s to 25%% in < 5x the triangle engine's time: median of %d warm runs %.0f ms vs %.0f ms "
+                      "(%.2fx; first runs %.0f ms vs %.0f ms, %.2fx)",
+                      mesh.name.c_str(), repeats, qm, tm, qm / tm, quad.ms, tri.ms, quad.ms / tri.ms);
+        checks.push_back({line, qm < 5.0 * tm});
       }
     }
   }
