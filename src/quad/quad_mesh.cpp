@@ -204,6 +204,16 @@ std::uint32_t QuadMesh::corner_of(std::uint32_t f, std::uint32_t v) const {
   return kInvalidIndex;
 }
 
+bool QuadMesh::across_table_consistent() const {
+  for (std::uint32_t f = 0; f < face_size_.size(); ++f) {
+    for (std::uint32_t i = 0; i < face_size_[f]; ++i) {
+      const Across a = across(f, i), b = find_across(f, i);
+      if (a.kind != b.kind || (a.kind == Across::face && (a.face_id != b.face_id || a.side != b.side))) return false;
+    }
+  }
+  return true;
+}
+
 QuadMesh::Across QuadMesh::find_across(std::uint32_t f, std::uint32_t side) const {
   const std::uint32_t n = face_size_[f];
   const std::uint32_t x = face_vertex(f, side), y = face_vertex(f, (side + 1) % n);

@@ -95,6 +95,9 @@ class QuadMesh {
   };
   // O(1): read from a table kept up to date by weld() (polychord tracing asks this for every quad it passes).
   Across across(std::uint32_t f, std::uint32_t side) const { return across_[face_begin_[f] + side]; }
+  // Whether across() agrees, for every side of every alive face, with a search of the vertex face lists (for
+  // tests of the incremental table).
+  bool across_table_consistent() const;
   // Position of vertex v in face f, or kInvalidIndex.
   std::uint32_t corner_of(std::uint32_t f, std::uint32_t v) const;
   // Newell normal of face f (area-weighted, not normalised).

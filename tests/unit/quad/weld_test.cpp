@@ -162,23 +162,26 @@ TEST(Weld, ChordEndingInTrianglesCollapsesToPureQuads) {
   EXPECT_EQ(euler(out), euler(m));
 }
 
-TEST(Weld, RandomIslandSetsGiveManifoldMeshesOrRollBack) {
+// With `diagonals`, about half the pairs are a quad's diagonal and the weld dissolves such quads. Either way
+// the across() table must match the face lists after every weld, made or rolled back.
+void random_island_sets(bool diagonals) {
   for (const Mesh& input : {make_torus(12, 8), make_subdivided_cube(4), make_quad_grid(6, 5)}) {
     QuadMesh qm(input);
     const long long chi = euler(input);
-    std::mt19937 rng(7);
+    std::mt19937 rng(diagonals ? 11 : 7);
     std::size_t accepted = 0, refused = 0;
     for (int trial = 0; trial < 300; ++trial) {
       const Mesh before = qm.to_mesh(input);
-      // 1 to 4 random face sides, joined into islands where they share vertices.
+      // 1 to 4 random face sides (or quad diagonals), joined into islands where they share vertices.
       std::vector<std::pair<std::uint32_t, std::uint32_t>> edges;
       const int count = 1 + static_cast<int>(rng() % 4);
       for (int e = 0; e < count; ++e) {
         std::uint32_t f;
         do f = rng() % qm.face_slots();
         while (!qm.face_alive(f));
-        const std::uint32_t i = rng() % qm.face_size(f);
-        edges.emplace_back(qm.face_vertex(f, i), qm.face_vertex(f, (i + 1) % qm.face_size(f)));
+        const std::uint32_t n = qm.face_size(f), i = rng() % n;
+        const bool diagonal = diagonals && n == 4 && rng() % 2 == 0;
+        edges.emplace_back(qm.face_vertex(f, i), qm.face_vertex(f, (i + (diagonal ? 2 : 1)) % n));
       }
       std::map<std::uint32_t, std::uint32_t> parent;
       auto root = [&](std::uint32_t v) {
@@ -201,8 +204,9 @@ TEST(Weld, RandomIslandSetsGiveManifoldMeshesOrRollBack) {
         islands.push_back(vs);
         positions.push_back(c * (1.0 / static_cast<double>(vs.size())));
       }
-      const WeldResult w = qm.weld(islands, positions);
+      const WeldResult w = qm.weld(islands, positions, {.dissolve_diagonal_quads = diagonals});
       const Mesh after = qm.to_mesh(input);
+      ASSERT_TRUE(qm.across_table_consistent()) << "trial " << trial << ", " << weld_failure_name(w.failure);
       if (w.ok()) {
         ++accepted;
         const ValidationReport r = validate(after);
@@ -222,6 +226,10 @@ TEST(Weld, RandomIslandSetsGiveManifoldMeshesOrRollBack) {
     EXPECT_GT(refused, 10u);
   }
 }
+
+TEST(Weld, RandomIslandSetsGiveManifoldMeshesOrRollBack) { random_island_sets(false); }
+
+TEST(Weld, RandomIslandSetsWithDiagonalsGiveManifoldMeshesOrRollBack) { random_island_sets(true); }
 
 TEST(Weld, RefusesIslandsWithTwoLockedVertices) {
   const Mesh grid = make_quad_grid(3, 3);
