@@ -521,6 +521,10 @@ bool Engine::try_diagonal() {
   for (std::uint32_t k : {e.diagonal + 1, (e.diagonal + 3) % 4}) {
     if (interior_valence_at_most(qm_.face_vertex(e.face, k), 3)) return false;
   }
+  // Nor may the merged vertex get more than diagonal_max_faces faces (a pole).
+  const std::size_t merged_faces = qm_.vertex_faces(qm_.face_vertex(e.face, e.diagonal)).size() +
+                                   qm_.vertex_faces(qm_.face_vertex(e.face, e.diagonal + 2)).size() - 2;
+  if (merged_faces > options_.diagonal_max_faces) return false;
   IslandPlan plan;
   plan.islands = {{qm_.face_vertex(e.face, e.diagonal), qm_.face_vertex(e.face, e.diagonal + 2)}};
   place(plan.islands[0], plan);
