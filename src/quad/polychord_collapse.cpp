@@ -821,8 +821,8 @@ PolychordResult simplify_polychord(const Mesh& mesh, const PolychordOptions& opt
   Engine engine(input, options, target);
   PolychordResult r = engine.run();
   r.recovered_quads = made;
-  // Triangles left by neighbouring runs often pair up into quads without moving anything: the quad's fan
-  // triangulation from its first corner is the two triangles as they were.
+  // Triangles left by neighbouring runs often pair up into quads without moving anything (quad_recovery.hpp:
+  // nearly coplanar pairs whose shared edge is the longest side, and whose other diagonal is not an edge).
   if (count_face_kinds(r.mesh).triangles >= 2) {
     r.mesh = recover_quads(r.mesh, {}, &r.paired_triangles);
     r.quads_after += r.paired_triangles;

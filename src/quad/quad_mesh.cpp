@@ -24,6 +24,7 @@ const char* weld_failure_name(WeldFailure f) {
     case WeldFailure::non_manifold_edge: return "non_manifold_edge";
     case WeldFailure::non_manifold_vertex: return "non_manifold_vertex";
     case WeldFailure::duplicate_face: return "duplicate_face";
+    case WeldFailure::diagonal_edge: return "diagonal_edge";
     case WeldFailure::flipped: return "flipped";
     case WeldFailure::degenerate: return "degenerate";
     case WeldFailure::euler: return "euler";
@@ -648,6 +649,25 @@ WeldFailure QuadMesh::check_after_weld(const std::vector<std::uint32_t>& faces,
   }
   for (std::uint32_t v : vertices) {
     if (!fan_is_single(v)) return WeldFailure::non_manifold_vertex;
+  }
+  // Outputs split quads along a diagonal (glTF, the evaluator, the triangle engine that may finish the LOD),
+  // and either diagonal may be the shorter one after the surface fit: a quad's diagonal must be neither an edge
+  // of another face nor a diagonal of another quad (as the two quads around a valence-2 vertex share one), or
+  // the split mesh has an edge with three or four triangles.
+  auto taken = [&](std::uint32_t f, std::uint32_t x, std::uint32_t y) {
+    for (std::uint32_t g : vertex_faces_[x]) {
+      if (g == f) continue;
+      const std::uint32_t m = face_size_[g], j = corner_of(g, x);
+      if (face_vertex(g, (j + 1) % m) == y || face_vertex(g, (j + m - 1) % m) == y) return true;
+      if (m == 4 && face_vertex(g, (j + 2) % 4) == y) return true;
+    }
+    return false;
+  };
+  for (std::uint32_t f : faces) {
+    if (face_size_[f] != 4) continue;
+    if (taken(f, face_vertex(f, 0), face_vertex(f, 2)) || taken(f, face_vertex(f, 1), face_vertex(f, 3))) {
+      return WeldFailure::diagonal_edge;
+    }
   }
   // Geometry: no face turns by more than the allowed angle, degenerates, or gets a new concave corner.
   const double cos_max = std::cos(options.max_flip_angle_deg * std::numbers::pi / 180.0);

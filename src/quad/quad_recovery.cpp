@@ -66,6 +66,12 @@ Mesh recover_quads(const Mesh& mesh, const QuadRecoveryOptions& options, std::si
     if (mesh.corner_vertex(c2) != mesh.corner_vertex(c1b) || mesh.corner_vertex(c2a) != mesh.corner_vertex(c1)) continue;
     if (mesh.corner_wedge[c2] != mesh.corner_wedge[c1b] || mesh.corner_wedge[c2a] != mesh.corner_wedge[c1]) continue;
     if (mesh.corner_vertex(c1c) == mesh.corner_vertex(c2d)) continue;
+    // The quad's other diagonal must not be an edge already: outputs split a quad along its shorter diagonal,
+    // and that edge would then get three triangles.
+    {
+      const std::uint32_t x = mesh.corner_vertex(c1c), y = mesh.corner_vertex(c2d);
+      if (std::binary_search(topo.edges.begin(), topo.edges.end(), std::array{std::min(x, y), std::max(x, y)})) continue;
+    }
     const Vec3d a = pos(c1), b = pos(c1b), c = pos(c1c), d = pos(c2d);
     const Vec3d n1 = cross(b - a, c - a), n2 = cross(a - b, d - b);
     const double dihedral = angle_deg(n1, n2);

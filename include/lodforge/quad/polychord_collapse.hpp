@@ -62,15 +62,15 @@ struct PolychordOptions {
   // one-rung run of the same cost, and is made only while the best run allowed ranks more than
   // diagonal_gate times worse than the best run the hard triangle budget holds back (or no run is allowed):
   // that is where the budget would otherwise force a whole loop across a feature. On the bench's MakeHuman
-  // proxy741 at 25% (1460 triangles) this took the mean distance from 2.07x the triangle engine's to 1.27x
-  // (with diagonal_max_faces), Suzanne's from 4.9x to 3.1x; without the gate (diagonals competing with every run) the sword at 10% went
-  // from 1.25x to 1.92x, as early diagonal collapses fragment the chords later runs need.
-  // diagonal_factor 0 = off.
-  double diagonal_factor = 4.0;
+  // proxy741 at 25% (1460 triangles) the mean distance is 1.45x the triangle engine's with them, 2.25x (and
+  // quad fraction 0.83) without; Suzanne's 2.3x against 3.8x. Without the gate (diagonals competing with every
+  // run) the sword at 10% went from 1.25x to 1.92x, as early diagonal collapses fragment the chords later runs
+  // need. Factor 8 against 4: proxy741 at 25% 1.45x against 1.49x, Suzanne 2.3x against 2.8x (quad fraction
+  // 0.87 against 0.84), the spot cage 1.47x against 2.77x. diagonal_factor 0 = off.
+  double diagonal_factor = 8.0;
   double diagonal_gate = 8.0;
-  // A diagonal collapse may not leave its merged vertex with more faces than this (a pole): on the bench the
-  // cap of 6 took the blub subdivision cage at 25% from 2.36x the triangle engine's mean to 1.01x and the spot
-  // cage from 2.95x to 1.45x (proxy741 1.32x -> 1.27x); Suzanne at 25% went from 2.71x to 3.14x.
+  // A diagonal collapse may not leave its merged vertex with more faces than this (a pole): without the cap
+  // the blub and spot subdivision cages at 25% went to 2.4x and 3.0x the triangle engine's mean.
   std::size_t diagonal_max_faces = 6;
   // Fit the vertices collapses moved to the input surface at the end (surface_fit.hpp).
   bool fit_surface = true;

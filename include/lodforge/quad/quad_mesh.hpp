@@ -32,6 +32,8 @@ enum class WeldFailure : std::uint8_t {
   non_manifold_edge, // an edge would get more than two faces, or two faces traversing it the same way
   non_manifold_vertex,  // a vertex fan would not be a single disc or half-disc (e.g. a pinched strip)
   duplicate_face,    // two faces would have the same vertex set
+  diagonal_edge,     // a quad's diagonal would also be an edge of another face or another quad's diagonal
+                     // (split along it, that edge would get three or four triangles)
   flipped,           // a face normal would turn by more than the allowed angle, or a corner would turn concave
   degenerate,        // a face would get (almost) zero area
   euler,             // the Euler characteristic would change (a handle or a component closed off)

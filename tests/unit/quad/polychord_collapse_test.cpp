@@ -105,8 +105,10 @@ Mesh make_bumpy_torus() {
 // 0.067 against 0.060 mean); the corpus test and the bench measure that on real meshes.
 TEST(Polychord, DiagonalCollapsesStandInForRunsTheBudgetForces) {
   const Mesh torus = make_bumpy_torus();
-  // No triangle budget at all: only whole loops are allowed, every partial run is held back.
+  // No triangle budget at all: only whole loops are allowed, every partial run is held back. Diagonals rank
+  // like runs here (factor 1), so that the gate, not their ranking, decides.
   PolychordOptions on{.target_ratio = 0.25, .max_triangle_fraction = 0.0};
+  on.diagonal_factor = 1.0;
   PolychordOptions off = on;
   off.diagonal_factor = 0.0;
   const PolychordResult with = simplify_polychord(torus, on), without = simplify_polychord(torus, off);
@@ -295,6 +297,25 @@ TEST(QuadRecovery, LeavesSeamsAndSharpFoldsAlone) {
   std::size_t made = 1;
   recover_quads(fold, {}, &made);
   EXPECT_EQ(made, 0u);
+}
+
+// A pair whose quad's other diagonal is already an edge stays two triangles: split along that diagonal (the
+// shorter one, or a tie), the edge would get three faces.
+TEST(QuadRecovery, LeavesPairsWhoseOtherDiagonalIsAnEdge) {
+  Mesh square;  // a (0), b (1) on the x axis; c (2) above, d (3) below: a square split along a-b
+  for (auto p : {Vec3f{{0, 0, 0}}, Vec3f{{2, 0, 0}}, Vec3f{{1, 1, 0}}, Vec3f{{1, -1, 0}}, Vec3f{{1, 0, 1}}}) {
+    testing::add_point(square, p[0], p[1], p[2]);
+  }
+  square.add_face({0, 1, 2});
+  square.add_face({1, 0, 3});
+  std::size_t made = 0;
+  recover_quads(square, {}, &made);
+  EXPECT_EQ(made, 1u);  // alone, the pair is a quad
+  square.add_face({3, 2, 4});  // now c-d is an edge of a third face
+  made = 1;
+  const Mesh out = recover_quads(square, {}, &made);
+  EXPECT_EQ(made, 0u);
+  EXPECT_EQ(validate(triangulated(out)).non_manifold_edges, 0u);
 }
 
 TEST(QuadRecovery, FeedsThePolychordEngineOnTriangleInput) {

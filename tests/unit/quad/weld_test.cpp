@@ -128,6 +128,34 @@ TEST(Weld, DiagonalCollapseDissolvesTheQuadAndKeepsTheRestQuads) {
   EXPECT_EQ(out.wedge_count(), out.vertex_count());
 }
 
+// Two quads left around a valence-2 vertex share a diagonal: split into triangles (glTF output, the
+// evaluator), that diagonal would get four triangles. The weld refuses to make such a pair.
+TEST(Weld, RefusesQuadsThatWouldShareADiagonal) {
+  const Mesh grid = make_quad_grid(8, 5);
+  QuadMesh qm(grid);
+  const std::uint32_t f = 2 * 8 + 3;
+  const std::uint32_t a = qm.face_vertex(f, 0), b = qm.face_vertex(f, 1), c = qm.face_vertex(f, 2);
+  ASSERT_TRUE(qm.weld({{a, c}}, {(qm.position(a) + qm.position(c)) * 0.5}, {.dissolve_diagonal_quads = true}).ok());
+  ASSERT_EQ(qm.vertex_faces(b).size(), 3u);
+  // Collapsing the diagonal, away from b, of a quad at b that does not hold the merged vertex leaves b with
+  // two quads sharing the diagonal through b.
+  std::size_t tried = 0;
+  for (std::uint32_t g : qm.vertex_faces(b)) {
+    const std::uint32_t i = qm.corner_of(g, b);
+    const std::uint32_t p = qm.face_vertex(g, (i + 1) % 4), q = qm.face_vertex(g, (i + 3) % 4);
+    if (qm.corner_of(g, a) != kInvalidIndex) continue;
+    const Mesh before = qm.to_mesh(grid);
+    const WeldResult w =
+        qm.weld({{p, q}}, {(qm.position(p) + qm.position(q)) * 0.5}, {.dissolve_diagonal_quads = true});
+    EXPECT_EQ(w.failure, WeldFailure::diagonal_edge);
+    EXPECT_EQ(qm.to_mesh(grid), before);
+    ++tried;
+  }
+  EXPECT_GT(tried, 0u);
+  // What was made splits into a manifold triangle mesh.
+  expect_valid(triangulated(qm.to_mesh(grid)));
+}
+
 TEST(Weld, ChordEndingInTrianglesCollapsesToPureQuads) {
   // Grid 4 x 3 with the boundary rungs of row 1 already collapsed: row 1 is triangle, 2 quads, triangle.
   Mesh m;
@@ -216,6 +244,8 @@ void random_island_sets(bool diagonals) {
         EXPECT_EQ(r.inconsistent_orientation, 0u);
         EXPECT_EQ(r.short_faces, 0u);
         EXPECT_EQ(euler(after), chi);
+        // Split into triangles as outputs are, it stays manifold (no quad diagonal doubles an edge).
+        EXPECT_EQ(validate(triangulated(after)).non_manifold_edges, 0u);
       } else {
         ++refused;
         EXPECT_EQ(after, before) << "rollback incomplete after " << weld_failure_name(w.failure);
