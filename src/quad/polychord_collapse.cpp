@@ -113,13 +113,8 @@ class Engine {
       }
     }
     if (options.lock_boundary) {
-      for (std::uint32_t f = 0; f < qm_.face_slots(); ++f) {
-        for (std::uint32_t i = 0; i < qm_.face_size(f); ++i) {
-          if (qm_.across(f, i).kind != QuadMesh::Across::face) {
-            qm_.lock(qm_.face_vertex(f, i));
-            qm_.lock(qm_.face_vertex(f, (i + 1) % qm_.face_size(f)));
-          }
-        }
+      for (std::uint32_t v = 0; v < qm_.vertex_count(); ++v) {
+        if (qm_.on_boundary(v)) qm_.lock(v);
       }
     }
     weld_options_.max_flip_angle_deg = options.max_flip_angle_deg;
@@ -155,9 +150,15 @@ class Engine {
   IslandPlan plan(const Chord& chord, const Candidate& c) const;
   void place(const std::vector<std::uint32_t>& island, IslandPlan& out) const;
   void push_diagonals(std::uint32_t face);
-  bool interior_valence_at_most(std::uint32_t v, std::size_t faces) const;
-  // Pops the best diagonal collapse and makes it if still valid; returns whether one was made.
-  bool try_diagonal();
+  // Pops the best diagonal collapse and makes it if still valid.
+  void try_diagonal();
+  // A candidate's rank: its cost per removed triangle, no better than its worst rung's cost scaled by
+  // worst_rung_weight (before any triangle-budget factor). Lower is better.
+  double rank(double cost, long long removed, double worst_rung) const {
+    const double per_triangle =
+        removed > 0 ? cost / static_cast<double>(removed) : std::numeric_limits<double>::infinity();
+    return std::max(per_triangle, options_.worst_rung_weight * 0.5 * worst_rung);
+  }
   double diagonal_top();  // key of the best live diagonal entry (stale ones dropped), +inf when none
   bool block_failing_rungs(Chord& chord, const Candidate& c);
   void trace_from(std::uint32_t face, int direction);
@@ -320,9 +321,8 @@ std::optional<Candidate> Engine::best_candidate(const Chord& chord, long long ca
       left = t0 + t1;
     }
     c.cost = std::max(0.0, prefix[j + 1] - prefix[i] + penalty_ * static_cast<double>(left));
-    c.key = c.removed > 0 ? c.cost / static_cast<double>(c.removed) : std::numeric_limits<double>::infinity();
     // A long cheap run must not carry one expensive rung along: rank it no better than its worst rung.
-    c.key = std::max(c.key, options_.worst_rung_weight * 0.5 * worst);
+    c.key = rank(c.cost, c.removed, worst);
     // Once the budget is spent, runs that leave triangles rank worse and runs that delete some rank better
     // (freeing budget): on the bench this kept the quad fraction near 0.9 rather than 0.87 at equal error.
     if (c.left > max_left) {
@@ -469,28 +469,14 @@ void Engine::place(const std::vector<std::uint32_t>& island, IslandPlan& out) co
   out.quadrics.push_back(q);
 }
 
-// Whether v is an interior vertex (a face across every side at v) with at most `faces` faces.
-bool Engine::interior_valence_at_most(std::uint32_t v, std::size_t faces) const {
-  const std::vector<std::uint32_t>& fan = qm_.vertex_faces(v);
-  if (fan.size() > faces) return false;
-  for (std::uint32_t f : fan) {
-    const std::uint32_t n = qm_.face_size(f), i = qm_.corner_of(f, v);
-    if (qm_.across(f, i).kind != QuadMesh::Across::face || qm_.across(f, (i + n - 1) % n).kind != QuadMesh::Across::face) {
-      return false;
-    }
-  }
-  return true;
-}
-
 // Scores both diagonals of quad f (nothing for other faces, or with diagonal collapses off).
 void Engine::push_diagonals(std::uint32_t f) {
   if (options_.diagonal_factor <= 0.0 || qm_.face_size(f) != 4) return;
   for (std::uint32_t d = 0; d < 2; ++d) {
     const double cost = rung_cost({qm_.face_vertex(f, d), qm_.face_vertex(f, d + 2)});
     if (!std::isfinite(cost)) continue;
-    // The key a one-rung run of this cost would have without its triangle penalty (best_candidate), times
-    // the diagonal factor.
-    const double key = options_.diagonal_factor * std::max(0.5 * cost, options_.worst_rung_weight * 0.5 * cost);
+    // The rank of a one-rung run of this cost that removes two triangles and leaves none, times the factor.
+    const double key = options_.diagonal_factor * rank(cost, 2, cost);
     diagonals_.push({key, f, d, face_version_[f]});
   }
 }
@@ -513,35 +499,35 @@ double Engine::diagonal_top() {
   return std::numeric_limits<double>::infinity();
 }
 
-bool Engine::try_diagonal() {
+void Engine::try_diagonal() {
   const DiagonalEntry e = diagonals_.top();
   diagonals_.pop();
   // The two other corners each lose a face: an interior one left with two faces would be a doublet (two
   // faces sharing two sides), which folds.
   for (std::uint32_t k : {e.diagonal + 1, (e.diagonal + 3) % 4}) {
-    if (interior_valence_at_most(qm_.face_vertex(e.face, k), 3)) return false;
+    const std::uint32_t v = qm_.face_vertex(e.face, k);
+    if (qm_.vertex_faces(v).size() <= 3 && !qm_.on_boundary(v)) return;
   }
   // Nor may the merged vertex get more than diagonal_max_faces faces (a pole).
   const std::size_t merged_faces = qm_.vertex_faces(qm_.face_vertex(e.face, e.diagonal)).size() +
                                    qm_.vertex_faces(qm_.face_vertex(e.face, e.diagonal + 2)).size() - 2;
-  if (merged_faces > options_.diagonal_max_faces) return false;
+  if (merged_faces > options_.diagonal_max_faces) return;
   IslandPlan plan;
   plan.islands = {{qm_.face_vertex(e.face, e.diagonal), qm_.face_vertex(e.face, e.diagonal + 2)}};
   place(plan.islands[0], plan);
-  if (options_.max_error_abs >= 0.0 && plan.max_error > options_.max_error_abs) return false;
-  if (!skin_allows(plan.islands)) return false;
+  if (options_.max_error_abs >= 0.0 && plan.max_error > options_.max_error_abs) return;
+  if (!skin_allows(plan.islands)) return;
   WeldOptions dissolve = weld_options_;
   dissolve.dissolve_diagonal_quads = true;
   const WeldResult w = qm_.weld(plan.islands, plan.positions, dissolve);
   if (!w.ok()) {
     ++rejected_;
-    return false;
+    return;
   }
   quadric_[w.survivors[0]] = plan.quadrics[0];
   error_bound_ = std::max(error_bound_, plan.max_error);
   ++diagonal_collapses_;
   invalidate_around(w);
-  return true;
 }
 
 // After the weld refused run c: blocks the rungs of c that the weld would refuse on their own (checked with

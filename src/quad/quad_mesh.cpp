@@ -215,6 +215,14 @@ bool QuadMesh::across_table_consistent() const {
   return true;
 }
 
+bool QuadMesh::on_boundary(std::uint32_t v) const {
+  for (std::uint32_t f : vertex_faces_[v]) {
+    const std::uint32_t n = face_size_[f], i = corner_of(f, v);
+    if (across(f, i).kind != Across::face || across(f, (i + n - 1) % n).kind != Across::face) return true;
+  }
+  return false;
+}
+
 QuadMesh::Across QuadMesh::find_across(std::uint32_t f, std::uint32_t side) const {
   const std::uint32_t n = face_size_[f];
   const std::uint32_t x = face_vertex(f, side), y = face_vertex(f, (side + 1) % n);

@@ -94,19 +94,11 @@ std::size_t refit_to_surface(QuadMesh& mesh, const Mesh& input, const TriangleBv
   const std::size_t nv = mesh.vertex_count();
   // Boundary vertices stay: their collapses kept them on the boundary line (border quadrics), which a step
   // along the surface normal would bend.
-  std::vector<std::uint8_t> on_boundary(nv, 0);
-  for (std::uint32_t f = 0; f < mesh.face_slots(); ++f) {
-    const std::uint32_t n = mesh.face_size(f);
-    for (std::uint32_t i = 0; i < n; ++i) {
-      if (mesh.across(f, i).kind == QuadMesh::Across::face) continue;
-      on_boundary[mesh.face_vertex(f, i)] = 1;
-      on_boundary[mesh.face_vertex(f, (i + 1) % n)] = 1;
-    }
-  }
   std::vector<std::uint8_t> movable(nv, 0);
   std::vector<std::uint32_t> order;
   for (std::uint32_t v = 0; v < nv; ++v) {
-    if (mesh.vertex_alive(v) && mesh.moved(v) && !mesh.locked(v) && !on_boundary[v] && !mesh.vertex_faces(v).empty()) {
+    if (mesh.vertex_alive(v) && mesh.moved(v) && !mesh.locked(v) && !mesh.vertex_faces(v).empty() &&
+        !mesh.on_boundary(v)) {
       movable[v] = 1;
       order.push_back(v);
     }
@@ -133,6 +125,7 @@ std::size_t refit_to_surface(QuadMesh& mesh, const Mesh& input, const TriangleBv
   std::vector<Vec3d> positions(nv), on_input;
   std::vector<std::uint32_t> sampled, indices;
   std::vector<BvhHit> hits(input_samples.size());
+  std::vector<std::array<Vec3d, 5>> before;  // normals of one vertex's faces before its step
   for (int it = 0; it < options.iterations; ++it) {
     triangles.clear();
     for (std::uint32_t f = 0; f < mesh.face_slots(); ++f) {
@@ -205,7 +198,7 @@ std::size_t refit_to_surface(QuadMesh& mesh, const Mesh& input, const TriangleBv
       const double t = std::clamp(offset[v] / weight[v], -limit, limit);
       // Steps at rounding level would only stir vertices that are on the surface already.
       if (!(std::abs(t) > kNegligibleStep * std::sqrt(shortest))) continue;
-      std::vector<std::array<Vec3d, 5>> before;
+      before.clear();
       for (std::uint32_t f : mesh.vertex_faces(v)) before.push_back(face_normals(mesh, f));
       for (double fraction : {1.0, 0.5}) {
         mesh.set_position(v, start + normal[v] * (t * fraction));

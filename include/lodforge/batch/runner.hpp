@@ -39,7 +39,8 @@ namespace lodforge::batch {
 // Part of every cache key: bump it whenever a change to lodforge makes the same input and config give
 // different output bytes (simplifier, post-process, writers), so stale LODs are rebuilt.
 // History: 2 LOD "attributes"; 3 attribute eval, quads; 4 quads split along their shorter diagonal, normals
-// within 0.1 degree one wedge, seam UV snap, polychord surface fit and triangle budget.
+// within 0.1 degree one wedge, seam UV snap, polychord surface fit and triangle budget; 5 polychord diagonal
+// collapses, one fit sample per triangle, fit convergence stop; 6 quads that split into manifold triangles.
 inline constexpr const char* kAlgorithmVersion = "lodforge-0.1.0/batch-6";
 inline constexpr const char* kLodforgeVersion = "0.1.0";
 

@@ -100,6 +100,8 @@ class QuadMesh {
   // Whether across() agrees, for every side of every alive face, with a search of the vertex face lists (for
   // tests of the incremental table).
   bool across_table_consistent() const;
+  // Whether a side of a face at v (from v or to v) has no face across: a boundary or non-manifold edge.
+  bool on_boundary(std::uint32_t v) const;
   // Position of vertex v in face f, or kInvalidIndex.
   std::uint32_t corner_of(std::uint32_t f, std::uint32_t v) const;
   // Newell normal of face f (area-weighted, not normalised).
