@@ -101,4 +101,51 @@ bool optimal_attributes(const AttributeQuadric& q, std::span<const AttributeGrad
   return true;
 }
 
+const AttributeGroup* AttributeLayout::find(AttributeGroup::Type type, int set) const {
+  for (const AttributeGroup& g : groups) {
+    if (g.type == type && g.set == set) return &g;
+  }
+  return nullptr;
+}
+
+void AttributeLayout::scaled(const std::vector<Vec3f>& normals, const std::vector<std::vector<Vec2f>>& uvs,
+                             const std::vector<std::vector<Vec4f>>& colors, std::uint32_t w, double* out) const {
+  for (const AttributeGroup& g : groups) {
+    double* o = out + g.dim;
+    switch (g.type) {
+      case AttributeGroup::Type::normal:
+        for (int i = 0; i < 3; ++i) o[i] = normals[w][i] * g.scale;
+        break;
+      case AttributeGroup::Type::uv:
+        for (int i = 0; i < 2; ++i) o[i] = uvs[static_cast<std::size_t>(g.set)][w][i] * g.scale;
+        break;
+      case AttributeGroup::Type::color:
+        for (int i = 0; i < 4; ++i) o[i] = colors[static_cast<std::size_t>(g.set)][w][i] * g.scale;
+        break;
+    }
+  }
+}
+
+AttributeLayout attribute_layout(const AttributeLayoutInput& in) {
+  AttributeLayout out;
+  auto add_group = [&](AttributeGroup::Type type, int set, int dims, double scale) {
+    if (!(scale > 0.0) || !std::isfinite(scale) || out.dims + dims > kMaxAttributeDims) return;
+    out.groups.push_back({type, set, out.dims, dims, scale});
+    out.dims += dims;
+  };
+  if (in.normals) add_group(AttributeGroup::Type::normal, 0, 3, std::sqrt(in.normal_weight) * in.length_unit);
+  for (std::size_t set = 0; set < in.uv_area.size(); ++set) {
+    if (in.uv_area[set] > 0.0) {
+      add_group(AttributeGroup::Type::uv, static_cast<int>(set), 2,
+                std::sqrt(in.uv_weight) * std::sqrt(in.area / in.uv_area[set]));
+    }
+  }
+  for (std::size_t set = 0; set < in.color_sets.size(); ++set) {
+    if (in.color_sets[set] != 0) {
+      add_group(AttributeGroup::Type::color, static_cast<int>(set), 4, std::sqrt(in.color_weight) * in.length_unit);
+    }
+  }
+  return out;
+}
+
 }  // namespace lodforge

@@ -610,6 +610,10 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
     const long long delta_euler = -undo.removed_vertices - (edges_after - undo.edges_before) - undo.killed_faces;
     if (delta_euler != 0) result.failure = WeldFailure::euler;
   }
+  if (result.ok() && !options.dry_run) {
+    result.wedges.reserve(members.size());
+    for (const auto& [root, v, w] : members) result.wedges.push_back({w, wedge_target(w), survivors[island_of_[v]]});
+  }
   reset_all();
   if (!result.ok() || options.dry_run) {
     rollback(undo);
@@ -718,12 +722,14 @@ void QuadMesh::rollback(const Undo& undo) {
   triangle_faces_ = undo.triangle_faces;
 }
 
-Mesh QuadMesh::to_mesh(const Mesh& m) const {
+Mesh QuadMesh::to_mesh(const Mesh& m, const AttributeOverrides& values) const {
   std::vector<std::uint32_t> wedge_map(m.wedge_count(), kInvalidIndex), vertices;
   for (std::uint32_t f = 0; f < face_size_.size(); ++f) {
     for (std::uint32_t i = 0; i < face_size_[f]; ++i) wedge_map[face_wedge(f, i)] = 0;
   }
-  Mesh out = compact_vertices_and_wedges(m, wedge_map, vertices, {.wedge_vertex = &wedge_vertex_});
+  AttributeOverrides overrides = values;
+  overrides.wedge_vertex = &wedge_vertex_;
+  Mesh out = compact_vertices_and_wedges(m, wedge_map, vertices, overrides);
   for (std::size_t i = 0; i < vertices.size(); ++i) {
     if (moved_[vertices[i]]) out.positions[i] = to_float(positions_[vertices[i]]);
   }

@@ -839,22 +839,18 @@ void CollapseMesh::setup_attributes(Parallel& parallel) {
   const double length_unit = nf > 0 ? std::sqrt(2.0 * area / static_cast<double>(nf)) : 0.0;
   skin_cost_scale_ = skin_.empty() ? 0.0 : aw.skin * length_unit * length_unit;
 
-  auto add_group = [&](AttributeGroup::Type type, int set, int dims, double scale) {
-    if (!(scale > 0.0) || !std::isfinite(scale) || dims_ + dims > kMaxAttributeDims) return;
-    groups_.push_back({type, set, dims_, dims, scale});
-    dims_ += dims;
-  };
-  if (!normals_.empty()) add_group(AttributeGroup::Type::normal, 0, 3, std::sqrt(aw.normal) * length_unit);
-  for (std::size_t set = 0; set < uvs_.size(); ++set) {
-    if (!uvs_[set].empty() && uv_area[set] > 0.0) {
-      add_group(AttributeGroup::Type::uv, static_cast<int>(set), 2, std::sqrt(aw.uv) * std::sqrt(area / uv_area[set]));
-    }
-  }
-  for (std::size_t set = 0; set < colors_.size(); ++set) {
-    if (!colors_[set].empty()) {
-      add_group(AttributeGroup::Type::color, static_cast<int>(set), 4, std::sqrt(aw.color) * length_unit);
-    }
-  }
+  std::vector<std::uint8_t> color_sets;
+  for (const auto& set : colors_) color_sets.push_back(set.empty() ? 0 : 1);
+  const AttributeLayout groups = attribute_layout({.normals = !normals_.empty(),
+                                                   .uv_area = uv_area,
+                                                   .color_sets = color_sets,
+                                                   .area = area,
+                                                   .length_unit = length_unit,
+                                                   .normal_weight = aw.normal,
+                                                   .uv_weight = aw.uv,
+                                                   .color_weight = aw.color});
+  groups_ = groups.groups;
+  dims_ = groups.dims;
   bool values = !normals_.empty() || !skin_.empty() || !morphs_.empty();
   for (const auto& set : uvs_) values |= !set.empty();
   for (const auto& set : colors_) values |= !set.empty();
@@ -865,22 +861,7 @@ void CollapseMesh::setup_attributes(Parallel& parallel) {
   wq_.assign(nw, {});
   wg_.assign(nw * dims, {});
   // Scaled attribute vector of wedge w.
-  auto scaled = [&](std::uint32_t w, double* out) {
-    for (const AttributeGroup& g : groups_) {
-      double* o = out + g.dim;
-      switch (g.type) {
-        case AttributeGroup::Type::normal:
-          for (int i = 0; i < 3; ++i) o[i] = normals_[w][i] * g.scale;
-          break;
-        case AttributeGroup::Type::uv:
-          for (int i = 0; i < 2; ++i) o[i] = uvs_[static_cast<std::size_t>(g.set)][w][i] * g.scale;
-          break;
-        case AttributeGroup::Type::color:
-          for (int i = 0; i < 4; ++i) o[i] = colors_[static_cast<std::size_t>(g.set)][w][i] * g.scale;
-          break;
-      }
-    }
-  };
+  auto scaled = [&](std::uint32_t w, double* out) { groups.scaled(normals_, uvs_, colors_, w, out); };
   // Per face, the in-plane gradient basis: an attribute with corner values s0, s1, s2 has gradient
   // (s1 − s0) B1 + (s2 − s0) B2 (fit_attribute_gradient's Gram solve, done once per face instead of once per
   // attribute and corner).
@@ -1718,16 +1699,16 @@ void recompute_tangents(Mesh& mesh) {
   if (mesh.tangents.size() != nw || mesh.normals.size() != nw || mesh.uvs.empty() || mesh.uvs[0].size() != nw) return;
   const std::vector<Vec2f>& uv = mesh.uvs[0];
   std::vector<Vec3d> tan(nw, Vec3d{}), bit(nw, Vec3d{});
-  for (std::size_t f = 0; f < mesh.face_count(); ++f) {
-    if (mesh.face_size(f) != 3) continue;
-    const std::uint32_t* w = &mesh.corner_wedge[mesh.face_offsets[f]];
+  // Polygons (the polychord engine's quads) count as the triangles they are drawn as.
+  auto add = [&](std::uint32_t c0, std::uint32_t c1, std::uint32_t c2) {
+    const std::uint32_t w[3] = {mesh.corner_wedge[c0], mesh.corner_wedge[c1], mesh.corner_wedge[c2]};
     const Vec3d p0 = to_double(mesh.positions[mesh.wedge_vertex[w[0]]]);
     const Vec3d e1 = to_double(mesh.positions[mesh.wedge_vertex[w[1]]]) - p0;
     const Vec3d e2 = to_double(mesh.positions[mesh.wedge_vertex[w[2]]]) - p0;
     const double s1 = double{uv[w[1]][0]} - uv[w[0]][0], t1 = double{uv[w[1]][1]} - uv[w[0]][1];
     const double s2 = double{uv[w[2]][0]} - uv[w[0]][0], t2 = double{uv[w[2]][1]} - uv[w[0]][1];
     const double det = s1 * t2 - s2 * t1;
-    if (!(std::abs(det) > 0.0) || !std::isfinite(det)) continue;
+    if (!(std::abs(det) > 0.0) || !std::isfinite(det)) return;
     // Unnormalised (× det² / |det|): each face contributes in proportion to its 3-D area.
     const double sign = det > 0.0 ? 1.0 : -1.0;
     const Vec3d tf = (e1 * t2 - e2 * t1) * sign;
@@ -1736,7 +1717,8 @@ void recompute_tangents(Mesh& mesh) {
       tan[w[j]] = tan[w[j]] + tf;
       bit[w[j]] = bit[w[j]] + bf;
     }
-  }
+  };
+  for (std::size_t f = 0; f < mesh.face_count(); ++f) for_each_face_triangle(mesh, f, add);
   for (std::size_t w = 0; w < nw; ++w) {
     const Vec3d n = to_double(mesh.normals[w]);
     const Vec3d t = tan[w] - n * dot(n, tan[w]);

@@ -114,7 +114,11 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options) {
              .locked_vertices = options.locked_vertices,
              .priority_lock = options.priority_lock,
              .skin_weight_threshold = options.skin_weight_threshold,
-             .skin_max_distance = options.skin_max_distance});
+             .skin_max_distance = options.skin_max_distance,
+             .normal_weight = options.attribute_weights.normal,
+             .uv_weight = options.attribute_weights.uv,
+             .color_weight = options.attribute_weights.color,
+             .optimal_attributes = options.attribute_placement == AttributePlacement::optimal});
   const double quad_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   SimplifyResult r;
   if (q.triangles_after > target) {
@@ -137,6 +141,8 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options) {
     r.error_bound_abs = std::max(r.error_bound_abs, q.error_bound_abs);
   } else {
     r.mesh = std::move(q.mesh);
+    // Normals and UVs of merged wedges changed: tangents follow them, as the triangle engine's do.
+    if (options.attribute_placement == AttributePlacement::optimal) collapse::recompute_tangents(r.mesh);
     r.triangles_after = q.triangles_after;
     r.error_bound_abs = q.error_bound_abs;
     r.collapses = q.collapses;

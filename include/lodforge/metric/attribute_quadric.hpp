@@ -16,7 +16,9 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <span>
+#include <vector>
 
 #include "lodforge/core/vec.hpp"
 #include "lodforge/metric/quadric.hpp"
@@ -58,5 +60,45 @@ Quadric reduce_merged_attributes(const AttributeQuadric& a, std::span<const Attr
 // s_j* = (G_j·p + β_j) / α for every attribute; false (out untouched) when α is 0.
 bool optimal_attributes(const AttributeQuadric& q, std::span<const AttributeGradient> sums, const Vec3d& p,
                         std::span<double> out);
+
+// ---- Which attributes take part, and in which units (shared by the triangle and polychord engines) ----------
+
+// Attribute dimensions beyond this are left out of the metric (a mesh would need 5 colour sets).
+inline constexpr int kMaxAttributeDims = 24;
+
+// One attribute stream taking part in the metric: dims [dim, dim + dims) of the scaled attribute vector,
+// scaled = raw × scale.
+struct AttributeGroup {
+  enum class Type : std::uint8_t { normal, uv, color } type;
+  int set = 0;
+  int dim = 0, dims = 0;
+  double scale = 0;
+};
+
+struct AttributeLayout {
+  std::vector<AttributeGroup> groups;
+  int dims = 0;  // total, at most kMaxAttributeDims
+
+  // The group of `type` and `set`, or nullptr.
+  const AttributeGroup* find(AttributeGroup::Type type, int set) const;
+  // Scaled attribute vector of wedge w (dims values) from per-wedge streams laid out as Mesh's.
+  void scaled(const std::vector<Vec3f>& normals, const std::vector<std::vector<Vec2f>>& uvs,
+              const std::vector<std::vector<Vec4f>>& colors, std::uint32_t w, double* out) const;
+};
+
+// What the layout is made from: whether there are normals, the UV area of each set (0: no usable set) and
+// which colour sets exist, beside the surface area; weights λ as in SimplifyOptions::AttributeWeights.
+// Units (ALGORITHMS.md 2.2): a normal or colour component is scaled by sqrt(λ) × length_unit (about one mean
+// edge length: sqrt(2 × mean triangle area)), a UV set by sqrt(λ) × sqrt(area / UV area) (its texel density),
+// so every scaled attribute is a length. Groups with a zero or non-finite scale, or past kMaxAttributeDims,
+// are left out. Order: normal, UV sets, colour sets.
+struct AttributeLayoutInput {
+  bool normals = false;
+  std::vector<double> uv_area;           // per UV set
+  std::vector<std::uint8_t> color_sets;  // per colour set: non-zero when present
+  double area = 0, length_unit = 0;
+  double normal_weight = 1, uv_weight = 1, color_weight = 1;
+};
+AttributeLayout attribute_layout(const AttributeLayoutInput& in);
 
 }  // namespace lodforge

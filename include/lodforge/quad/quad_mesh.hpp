@@ -56,6 +56,13 @@ struct WeldResult {
   std::vector<std::uint32_t> faces;      // faces the weld rewrote (alive or killed), ascending
   std::vector<std::uint32_t> survivors;  // the vertex each island became, in island order
   long long triangles_removed = 0;       // fan-triangle count before minus after
+  // Every wedge of an island vertex: the wedge it is now (its class's representative, see weld()) and the
+  // island's survivor. Filled when the weld is made (not on failure or dry runs); engines merge per-wedge
+  // data (attribute quadrics) along it.
+  struct Wedge {
+    std::uint32_t wedge, into, survivor;
+  };
+  std::vector<Wedge> wedges;
   bool ok() const { return failure == WeldFailure::none; }
 };
 
@@ -122,8 +129,8 @@ class QuadMesh {
 
   // The mesh now: alive faces in input order with their materials and groups; referenced wedges and vertices
   // compacted in id order; unmoved vertices bit-identical to `source` (which must be the mesh this was built
-  // from).
-  Mesh to_mesh(const Mesh& source) const;
+  // from). `values` may replace the source's per-wedge normals, UV sets and colours (indexed by source wedge).
+  Mesh to_mesh(const Mesh& source, const AttributeOverrides& values = {}) const;
 
  private:
   struct Undo;

@@ -225,18 +225,6 @@ class CollapseMesh {
   // kFan: a single, consistently oriented manifold fan (interior, border and seam vertices), whose boundary
   // status kOpen is kept exact by apply(); check() and ring() take their fast paths on it.
   static constexpr std::uint8_t kDead = 1, kMoved = 2, kSeam = 4, kFan = 8, kOpen = 16;
-  // Attribute dimensions beyond this are left out of the metric (a mesh would need 5 colour sets).
-  static constexpr int kMaxAttributeDims = 24;
-
-  // One attribute stream taking part in the metric: dims [dim, dim + dims) of the scaled attribute vector,
-  // scaled = raw × scale.
-  struct AttributeGroup {
-    enum class Type : std::uint8_t { normal, uv, color } type;
-    int set = 0;
-    int dim = 0, dims = 0;
-    double scale = 0;
-  };
-
   std::uint32_t key(std::size_t corner) const { return tri_key_.empty() ? tri_wedge_[corner] : tri_key_[corner]; }
   bool flip_ok(const Vec3d& old_p, const Vec3d& x, const Vec3d& p, const Vec3d& q) const;
   bool wedges_carry_over(std::uint32_t a, std::uint32_t b, const Check& c) const;
@@ -291,7 +279,7 @@ class CollapseMesh {
 
   // --- seams, attributes, skin (ALGORITHMS.md 2, 6) ---
   std::vector<std::uint32_t> tri_key_;  // key of each corner when it is not simply the wedge (see VertexKind)
-  std::vector<AttributeGroup> groups_;
+  std::vector<AttributeGroup> groups_;    // attribute_layout() (metric/attribute_quadric.hpp)
   int dims_ = 0;                           // scaled attribute dimensions in the metric (0: geometry only)
   std::vector<AttributeQuadric> wq_;       // per wedge
   std::vector<AttributeGradient> wg_;      // dims_ per wedge

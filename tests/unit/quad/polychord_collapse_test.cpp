@@ -263,6 +263,84 @@ TEST(Polychord, RejectsBadOptionsAndLocks) {
   EXPECT_THROW(simplify_polychord(grid, {.hard_budget_factor = 0.5}), std::invalid_argument);
   EXPECT_THROW(simplify_polychord(grid, {.diagonal_factor = -1.0}), std::invalid_argument);
   EXPECT_THROW(simplify_polychord(grid, {.diagonal_gate = std::numeric_limits<double>::infinity()}), std::invalid_argument);
+  EXPECT_THROW(simplify_polychord(grid, {.normal_weight = -1.0}), std::invalid_argument);
+  EXPECT_THROW(simplify_polychord(grid, {.uv_weight = std::numeric_limits<double>::quiet_NaN()}), std::invalid_argument);
+  EXPECT_THROW(simplify_polychord(grid, {.color_weight = -0.5}), std::invalid_argument);
+  EXPECT_THROW(simplify_polychord(grid, {.attribute_cost_weight = -1.0}), std::invalid_argument);
+}
+
+// A colour that is a linear function of position (each channel in (0, 1) on the torus) and the torus's exact
+// unit normals, one wedge per vertex.
+Vec4f ramp(const Vec3f& p) {
+  return {{0.5f + 0.1f * p[0], 0.5f + 0.1f * p[1], 0.5f + 0.3f * p[2], 1.0f}};
+}
+Vec3f torus_normal(const Vec3f& p) {
+  const double r = std::hypot(p[0], p[1]);
+  const Vec3d centre{{3.0 * p[0] / r, 3.0 * p[1] / r, 0.0}};
+  const Vec3d n = to_double(p) - centre;
+  return to_float(n * (1.0 / length(n)));
+}
+
+// Merged wedges take their attribute quadrics' minimiser at the island's new position (Hoppe 1999): on a
+// torus whose colour is linear in position, the output colours follow the moved vertices, and the normals
+// stay close to the surface's; the survivor's values (optimal_attributes off) lag behind.
+TEST(Polychord, MergedWedgesTakeOptimalAttributes) {
+  Mesh torus = make_torus(24, 12);
+  torus.colors.assign(1, {});
+  for (std::uint32_t w = 0; w < torus.wedge_count(); ++w) {
+    const Vec3f& p = torus.positions[torus.wedge_vertex[w]];
+    torus.colors[0].push_back(ramp(p));
+    torus.normals.push_back(torus_normal(p));
+  }
+  auto errors = [&](bool optimal) {
+    const PolychordResult r =
+        simplify_polychord(torus, {.target_ratio = 0.5, .fit_surface = false, .optimal_attributes = optimal});
+    EXPECT_EQ(r.mesh.colors.size(), 1u);
+    EXPECT_EQ(r.mesh.normals.size(), r.mesh.wedge_count());
+    double colour = 0, normal = 0;
+    std::size_t moved = 0;
+    for (std::uint32_t w = 0; w < r.mesh.wedge_count(); ++w) {
+      const Vec3f& p = r.mesh.positions[r.mesh.wedge_vertex[w]];
+      const Vec4f want = ramp(p), got = r.mesh.colors[0][w];
+      for (int i = 0; i < 4; ++i) colour = std::max(colour, static_cast<double>(std::abs(got[i] - want[i])));
+      const Vec3f n = r.mesh.normals[w];
+      EXPECT_NEAR(length(to_double(n)), 1.0, 1e-5);
+      normal = std::max(normal, length(to_double(n) - to_double(torus_normal(p))));
+      moved += std::find(torus.positions.begin(), torus.positions.end(), p) == torus.positions.end();
+    }
+    EXPECT_GT(moved, 50u);  // most rings collapse to new points
+    return std::pair{colour, normal};
+  };
+  const auto [colour, normal] = errors(true);
+  const auto [kept_colour, kept_normal] = errors(false);
+  EXPECT_GT(kept_colour, 0.02);  // the survivor's colour is half an edge away
+  EXPECT_LT(colour, 0.25 * kept_colour);
+  EXPECT_LT(normal, 0.5 * kept_normal);
+}
+
+// UVs of merged wedges follow the moved vertices: on a gently bent grid (z = x² / 16) with UVs linear in x and
+// y, they stay within a tenth of the survivor's error of the layout's value at the new position.
+TEST(Polychord, UvsFollowMovedVertices) {
+  Mesh grid = make_quad_grid(8, 6);
+  grid.uvs.assign(1, {});
+  for (Vec3f& p : grid.positions) p[2] = p[0] * p[0] / 16.0f;
+  for (std::uint32_t w = 0; w < grid.wedge_count(); ++w) {
+    const Vec3f& p = grid.positions[grid.wedge_vertex[w]];
+    grid.uvs[0].push_back({{p[0] / 8.0f, p[1] / 6.0f}});
+  }
+  auto error = [&](bool optimal) {
+    const PolychordResult r = simplify_polychord(grid, {.target_triangles = 48, .optimal_attributes = optimal});
+    EXPECT_EQ(r.mesh.uvs.size(), 1u);
+    double worst = 0;
+    for (std::uint32_t w = 0; w < r.mesh.wedge_count(); ++w) {
+      const Vec3f& p = r.mesh.positions[r.mesh.wedge_vertex[w]];
+      worst = std::max({worst, std::abs(r.mesh.uvs[0][w][0] - p[0] / 8.0), std::abs(r.mesh.uvs[0][w][1] - p[1] / 6.0)});
+    }
+    return worst;
+  };
+  const double optimal = error(true), kept = error(false);
+  EXPECT_GT(kept, 0.02);
+  EXPECT_LT(optimal, 0.1 * kept);
 }
 
 TEST(Polychord, HandlesEmptyAndBrokenInput) {
