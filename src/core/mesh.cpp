@@ -176,6 +176,16 @@ std::vector<std::uint32_t> triangle_vertex_indices(const Mesh& mesh) {
   return indices;
 }
 
+bool face_indices_in_range(const Mesh& mesh, std::size_t f) {
+  for (std::uint32_t c = mesh.face_offsets[f]; c < mesh.face_offsets[f + 1]; ++c) {
+    if (!(c < mesh.corner_count() && mesh.corner_wedge[c] < mesh.wedge_count() &&
+          mesh.wedge_vertex[mesh.corner_wedge[c]] < mesh.vertex_count())) {
+      return false;
+    }
+  }
+  return true;
+}
+
 std::uint32_t triangulation_start(const Mesh& mesh, std::size_t f) {
   if (mesh.face_size(f) != 4) return 0;
   const std::uint32_t c = mesh.face_offsets[f];

@@ -280,11 +280,10 @@ void Engine::setup_attributes() {
   // The triangles, as corner offsets, of the faces QuadMesh keeps (in-range indices).
   std::vector<std::array<std::uint32_t, 3>> triangles;
   for (std::size_t f = 0; f < m.face_count(); ++f) {
-    bool valid = m.face_offsets[f + 1] <= m.corner_count();
-    for (std::uint32_t c = m.face_offsets[f]; c < m.face_offsets[f + 1] && valid; ++c) {
-      valid = m.corner_wedge[c] < nw && m.wedge_vertex[m.corner_wedge[c]] < nv;
-    }
-    if (valid) for_each_face_triangle(m, f, [&](std::uint32_t c0, std::uint32_t c1, std::uint32_t c2) { triangles.push_back({c0, c1, c2}); });
+    if (!face_indices_in_range(m, f)) continue;
+    for_each_face_triangle(m, f, [&](std::uint32_t c0, std::uint32_t c1, std::uint32_t c2) {
+      triangles.push_back({c0, c1, c2});
+    });
   }
   auto point = [&](std::uint32_t c) { return to_double(m.positions[m.corner_vertex(c)]); };
   double area = 0.0;
@@ -298,10 +297,8 @@ void Engine::setup_attributes() {
     area += a;
     for (std::size_t set = 0; set < m.uvs.size(); ++set) {
       if (m.uvs[set].size() != nw) continue;
-      const Vec2f u0 = m.uvs[set][m.corner_wedge[c[0]]], u1 = m.uvs[set][m.corner_wedge[c[1]]],
-                  u2 = m.uvs[set][m.corner_wedge[c[2]]];
-      const double ua = 0.5 * std::abs((double{u1[0]} - u0[0]) * (double{u2[1]} - u0[1]) -
-                                       (double{u2[0]} - u0[0]) * (double{u1[1]} - u0[1]));
+      const std::vector<Vec2f>& uv = m.uvs[set];
+      const double ua = uv_triangle_area(uv[m.corner_wedge[c[0]]], uv[m.corner_wedge[c[1]]], uv[m.corner_wedge[c[2]]]);
       if (std::isfinite(ua)) uv_area[set] += ua;
     }
   }
@@ -628,10 +625,8 @@ void Engine::place(const std::vector<std::uint32_t>& island, IslandPlan& out) co
 void Engine::carry_attributes(const WeldResult& w) {
   if (layout_.dims == 0) return;
   const auto dims = static_cast<std::size_t>(layout_.dims);
-  std::vector<WeldResult::Wedge> list = w.wedges;
-  std::sort(list.begin(), list.end(), [](const WeldResult::Wedge& x, const WeldResult::Wedge& y) {
-    return x.into != y.into ? x.into < y.into : x.wedge < y.wedge;
-  });
+  // weld() lists each class's wedges together (one `into` each); they merge in wedge order.
+  const std::vector<WeldResult::Wedge>& list = w.wedges;
   std::vector<double> opt(dims);
   std::vector<std::uint32_t> members;
   for (std::size_t b = 0, e = 0; b < list.size(); b = e) {
@@ -639,6 +634,7 @@ void Engine::carry_attributes(const WeldResult& w) {
     members.clear();
     for (e = b; e < list.size() && list[e].into == t; ++e) members.push_back(list[e].wedge);
     if (members.size() < 2) continue;
+    std::sort(members.begin(), members.end());
     for (std::uint32_t m : members) {
       if (m != t && dims > 0) {
         merge_attribute_quadrics(wq_[t], std::span(&wg_[t * dims], dims), wq_[m],

@@ -68,13 +68,7 @@ TriangleBvh input_surface_bvh(const Mesh& input) {
   for (const Vec3f& p : input.positions) positions.push_back(to_double(p));
   std::vector<std::uint32_t> indices;
   for (std::size_t f = 0; f < input.face_count(); ++f) {
-    // Faces with out-of-range indices are not surface (QuadMesh drops them too).
-    bool valid = true;
-    for (std::uint32_t c = input.face_offsets[f]; c < input.face_offsets[f + 1] && valid; ++c) {
-      valid = c < input.corner_count() && input.corner_wedge[c] < input.wedge_count() &&
-              input.wedge_vertex[input.corner_wedge[c]] < input.vertex_count();
-    }
-    if (!valid) continue;
+    if (!face_indices_in_range(input, f)) continue;  // not surface (QuadMesh drops it too)
     for_each_face_triangle(input, f, [&](std::uint32_t c0, std::uint32_t c1, std::uint32_t c2) {
       for (std::uint32_t c : {c0, c1, c2}) indices.push_back(input.corner_vertex(c));
     });

@@ -830,9 +830,7 @@ void CollapseMesh::setup_attributes(Parallel& parallel) {
     area += 0.5 * length(cross(p1 - p0, p2 - p0));
     for (std::size_t set = 0; set < uvs_.size(); ++set) {
       if (uvs_[set].empty()) continue;
-      const Vec2f a = uvs_[set][w[0]], b = uvs_[set][w[1]], c = uvs_[set][w[2]];
-      const double ua = 0.5 * std::abs((double{b[0]} - a[0]) * (double{c[1]} - a[1]) -
-                                       (double{c[0]} - a[0]) * (double{b[1]} - a[1]));
+      const double ua = uv_triangle_area(uvs_[set][w[0]], uvs_[set][w[1]], uvs_[set][w[2]]);
       if (std::isfinite(ua)) uv_area[set] += ua;
     }
   }

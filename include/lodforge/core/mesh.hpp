@@ -153,6 +153,10 @@ void for_each_face_triangle(const Mesh& mesh, std::size_t f, Emit&& emit) {
   for (std::uint32_t i = 1; i + 1 < k; ++i) emit(begin + s, begin + (s + i) % k, begin + (s + i + 1) % k);
 }
 
+// Whether every corner of face f lies inside corner_wedge and names an existing wedge of an existing vertex
+// (faces failing this carry no surface: QuadMesh drops them).
+bool face_indices_in_range(const Mesh& mesh, std::size_t f);
+
 // Three vertex indices per triangle of the whole mesh, as for_each_face_triangle() makes them.
 std::vector<std::uint32_t> triangle_vertex_indices(const Mesh& mesh);
 

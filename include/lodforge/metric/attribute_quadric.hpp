@@ -15,6 +15,7 @@
 // machinery works unchanged.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -100,5 +101,10 @@ struct AttributeLayoutInput {
   double normal_weight = 1, uv_weight = 1, color_weight = 1;
 };
 AttributeLayout attribute_layout(const AttributeLayoutInput& in);
+
+// Unsigned area of the UV triangle (a, b, c) in double precision (what AttributeLayoutInput::uv_area sums).
+inline double uv_triangle_area(const Vec2f& a, const Vec2f& b, const Vec2f& c) {
+  return 0.5 * std::abs((double{b[0]} - a[0]) * (double{c[1]} - a[1]) - (double{c[0]} - a[0]) * (double{b[1]} - a[1]));
+}
 
 }  // namespace lodforge

@@ -57,7 +57,7 @@ struct WeldResult {
   std::vector<std::uint32_t> survivors;  // the vertex each island became, in island order
   long long triangles_removed = 0;       // fan-triangle count before minus after
   // Every wedge of an island vertex: the wedge it is now (its class's representative, see weld()) and the
-  // island's survivor. Filled when the weld is made (not on failure or dry runs); engines merge per-wedge
+  // island's survivor; the wedges of one class are listed together. Filled when the weld is made (not on failure or dry runs); engines merge per-wedge
   // data (attribute quadrics) along it.
   struct Wedge {
     std::uint32_t wedge, into, survivor;
