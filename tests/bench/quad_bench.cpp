@@ -5,7 +5,8 @@
 //
 // The triangle engine and meshoptimizer are asked for exactly the triangle count the polychord engine
 // reached, so the quality columns compare like with like. Where attribute seams stop the triangle engine
-// above that count, it runs again on the geometry alone (row "edge_col(geom)").
+// above that count, both engines run again on the geometry alone (rows "polychord(geom)", "edge_col(geom)")
+// and the mean-distance target compares those two.
 #include <CLI/CLI.hpp>
 #include <meshoptimizer.h>
 
@@ -59,8 +60,8 @@ Mesh make_torus(int major, int minor) {
   return m;
 }
 
-// One wedge per vertex, no attributes: the triangle engine's reference run falls back to it when attribute
-// seams stop it above the polychord engine's triangle count (Suzanne's normals do).
+// One wedge per vertex, no attributes: both engines run again on it when attribute seams stop the triangle
+// engine above the polychord engine's triangle count (Suzanne's normals do).
 Mesh geometry_only(const Mesh& m) {
   Mesh g;
   g.materials = m.materials;
@@ -177,10 +178,21 @@ int main(int argc, char** argv) {
       t0 = Clock::now();
       SimplifyResult t = simplify(mesh, {.target_triangles = q.triangles_after});
       tri.ms = ms_since(t0);
+      // Attribute seams stop the triangle engine above the polychord engine's count: compare like with like,
+      // both engines on the geometry alone (the polychord row above honoured the seams; the spot cage at 10%
+      // reaches 52 triangles with them, the triangle engine 56).
+      Row quad_geom = quad;
       if (t.triangles_after > q.triangles_after) {
+        const Mesh geom = geometry_only(mesh);
+        quad_geom.method = "polychord(geom)";
+        t0 = Clock::now();
+        const SimplifyResult qg = simplify(geom, qo);
+        quad_geom.ms = ms_since(t0);
+        measure(quad_geom, mesh, qg.mesh, eval_samples);
+        print_row(quad_geom);
         tri.method = "edge_col(geom)";
         t0 = Clock::now();
-        t = simplify(geometry_only(mesh), {.target_triangles = q.triangles_after});
+        t = simplify(geom, {.target_triangles = qg.triangles_after});
         tri.ms = ms_since(t0);
       }
       measure(tri, mesh, t.mesh, eval_samples);
@@ -201,10 +213,11 @@ int main(int argc, char** argv) {
         checks.push_back({line, quad.stats.quad_fraction >= 0.85});
       }
       if (!generated) {
-        std::snprintf(line, sizeof line, "mean <= 1.5x triangle engine on %s at %.2f: %.5f%% vs %.5f%% (%.2fx)",
-                      mesh.name.c_str(), ratio, 100 * quad.mean_rel, 100 * tri.mean_rel,
-                      tri.mean_rel > 0 ? quad.mean_rel / tri.mean_rel : 0.0);
-        checks.push_back({line, quad.mean_rel <= 1.5 * tri.mean_rel});
+        const bool geom = quad_geom.method != quad.method;
+        std::snprintf(line, sizeof line, "mean <= 1.5x triangle engine on %s at %.2f%s: %.5f%% vs %.5f%% (%.2fx)",
+                      mesh.name.c_str(), ratio, geom ? " (geometry only, both)" : "", 100 * quad_geom.mean_rel,
+                      100 * tri.mean_rel, tri.mean_rel > 0 ? quad_geom.mean_rel / tri.mean_rel : 0.0);
+        checks.push_back({line, quad_geom.mean_rel <= 1.5 * tri.mean_rel});
       } else {
         // The rows above are each engine's first run in this process, and the polychord engine runs first:
         // it pays the page faults of fresh memory and the thread pool's start, the triangle engine then reuses
