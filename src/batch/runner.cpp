@@ -261,6 +261,7 @@ struct Job {
 
   io::Asset asset;
   std::size_t triangles = 0, vertices = 0;
+  std::size_t repeated_faces = 0;  // faces repeating an earlier one in the input, dropped before simplifying
   double diagonal = 0;
   std::vector<std::shared_ptr<const MeshChain>> chains;  // per asset mesh
   std::vector<Mesh> sources;                             // per asset mesh, post-processed for output
@@ -496,6 +497,7 @@ class Pipeline {
       }
       job.triangles += mesh.triangle_count();
       job.vertices += mesh.vertex_count();
+      job.repeated_faces += repeated_faces(mesh).size();  // simplify() drops them (report: input)
       const Bounds3 b = compute_bounds(mesh);
       if (!b.empty()) {
         bounds.add(b.min);
@@ -505,7 +507,8 @@ class Pipeline {
     if (job.triangles == 0) throw std::runtime_error("the asset has no triangles to simplify");
     job.diagonal = bounds.diagonal();
     job.record["input"] = {
-        {"triangles", job.triangles}, {"vertices", job.vertices}, {"diagonal", finite(job.diagonal)}};
+        {"triangles", job.triangles}, {"vertices", job.vertices}, {"diagonal", finite(job.diagonal)},
+        {"repeated_faces", job.repeated_faces}};
   }
 
   void lods(Job& job) {

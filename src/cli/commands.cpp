@@ -250,6 +250,10 @@ void register_simplify(CLI::App& app) {
                     i, r.triangles_before, r.triangles_after, r.error_bound_abs, 100.0 * r.error_bound_rel,
                     stop_reason_name(r.stop_reason),
                     r.timings.setup_ms + r.timings.initial_costs_ms + r.timings.collapse_ms + r.timings.output_ms);
+        if (r.repeated_faces_removed > 0) {
+          std::printf("  note: dropped %zu face(s) repeating an earlier face (same corners, winding and material)\n",
+                      r.repeated_faces_removed);
+        }
         if (opt.engine == Engine::polychord) {
           std::printf("  quads: %zu -> %zu (quad fraction %.3f)\n", r.quads_before, r.quads_after,
                       quad::quad_stats(r.mesh).quad_fraction);

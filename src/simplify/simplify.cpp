@@ -167,6 +167,19 @@ SimplifyResult simplify(const Mesh& mesh, const SimplifyOptions& options) {
     for (const std::string& p : problems) msg += "\n  " + p;
     throw std::invalid_argument(msg);
   }
+  // Faces repeating an earlier one go first (they draw nothing, and their non-manifold edges would stop the
+  // engines around them: the MakeHuman hair at 10% measured a mean distance of 2.05% of the diagonal with
+  // them, 0.13% without). A ratio target stays a ratio of the input as given.
+  const std::vector<std::uint32_t> repeats = repeated_faces(mesh);
+  if (!repeats.empty()) {
+    SimplifyOptions rest = options;
+    rest.target_triangles = std::max<std::size_t>(collapse::target_triangle_count(options, mesh.triangle_count()), 1);
+    SimplifyResult r = simplify(without_faces(mesh, repeats), rest);
+    r.triangles_before = mesh.triangle_count();
+    r.quads_before = count_face_kinds(mesh).quads;
+    r.repeated_faces_removed = repeats.size();
+    return r;
+  }
   if (options.engine == Engine::polychord) return run_polychord(mesh, options);
   const auto t0 = std::chrono::steady_clock::now();
   const FaceKindCounts kinds = count_face_kinds(mesh);

@@ -124,6 +124,18 @@ Mesh make_cube_quads() {
   return with_default_material(std::move(m));
 }
 
+Mesh with_repeated_faces(const Mesh& mesh, std::size_t every) {
+  Mesh m = mesh;
+  for (std::size_t f = 0; f < mesh.face_count(); f += every) {
+    const std::uint32_t begin = mesh.face_offsets[f], k = mesh.face_size(f);
+    std::vector<std::uint32_t> corners;
+    for (std::uint32_t i = 0; i < k; ++i) corners.push_back(mesh.corner_wedge[begin + (i + 1) % k]);
+    m.add_face(corners.data(), corners.size(), mesh.face_material.empty() ? 0 : mesh.face_material[f]);
+    if (!m.face_group.empty()) m.face_group.push_back(mesh.face_group[f]);
+  }
+  return m;
+}
+
 Mesh make_grid(int nx, int ny, bool quads) {
   Mesh m;
   for (int y = 0; y <= ny; ++y) {

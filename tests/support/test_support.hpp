@@ -54,5 +54,8 @@ Mesh make_uv_sphere(int rings, int segments, float radius = 1.0f);  // closed tr
 // Open unit-radius triangle cylinder along z in [0, 4] bound to two joints: joint 0 below z = band_start, joint 1
 // above band_start + band_width, weights linear in between (the blend band).
 Mesh make_two_bone_cylinder(int rings, int segments, float band_start, float band_width);
+// `mesh` with every `every`-th face written again at the end, starting from its second corner (what some
+// exporters do: same face, same winding): repeated_faces() lists exactly the copies.
+Mesh with_repeated_faces(const Mesh& mesh, std::size_t every);
 
 }  // namespace lodforge::testing

@@ -4,12 +4,15 @@
 //    "summary": {"assets", "succeeded", "failed", "skipped", "cache_hits", "lods", "input_triangles",
 //                "output_triangles": int, "seconds": float},
 //    "assets": [{"path", "class": str | null, "status": "ok" | "failed" | "skipped", "error": str | null,
-//                "cache_hit": bool, "seconds": float, "input": {"triangles", "vertices": int, "diagonal": float},
+//                "cache_hit": bool, "seconds": float, "input": {"triangles", "vertices": int, "diagonal": float,
+//                "repeated_faces": int},
 //                "outputs": [str], "lods": [{"level", "from", "target": {"kind", "value"}, "target_triangles",
 //                "triangles", "vertices", "ratio", "error_bound_abs", "error_bound_rel", "mean_rel", "rms_rel",
 //                "hausdorff_rel", "normal_deviation_mean_deg", "attributes": {name: float}, "quad_fraction",
 //                "irregular_vertices", "stop_reason", "seconds", "screen_coverage"}]}]}
 //
+// "input.repeated_faces": faces that repeat an earlier face of their mesh (core repeated_faces()); simplify()
+// drops them before anything else (reports of earlier versions lack it).
 // Per LOD: "target" is what the config asked ({"kind": "ratio" | "triangles" | "max_error" | "screen_size",
 // "value"}), "target_triangles" its triangle count for this asset (null for error targets), "triangles" and
 // "vertices" what was achieved; "error_bound_*" the simplifier's bound on the error against the source

@@ -41,8 +41,9 @@ namespace lodforge::batch {
 // History: 2 LOD "attributes"; 3 attribute eval, quads; 4 quads split along their shorter diagonal, normals
 // within 0.1 degree one wedge, seam UV snap, polychord surface fit and triangle budget; 5 polychord diagonal
 // collapses, one fit sample per triangle, fit convergence stop; 6 quads that split into manifold triangles;
-// 7 polychord attribute quadrics (merged wedges' optimal values, tangents recomputed).
-inline constexpr const char* kAlgorithmVersion = "lodforge-0.1.0/batch-7";
+// 7 polychord attribute quadrics (merged wedges' optimal values, tangents recomputed); 8 faces repeating an
+// earlier face dropped before simplifying.
+inline constexpr const char* kAlgorithmVersion = "lodforge-0.1.0/batch-8";
 inline constexpr const char* kLodforgeVersion = "0.1.0";
 
 // Estimated peak memory of one asset in flight. Measured with `lodforge run`: the whole chain (loaded Mesh,

@@ -17,6 +17,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <span>
 #include <vector>
 
 #include "lodforge/core/vec.hpp"
@@ -178,6 +179,16 @@ struct AttributeOverrides {
 // and wedge array (positions as in m: callers write the moved ones), and no faces.
 Mesh compact_vertices_and_wedges(const Mesh& m, std::vector<std::uint32_t>& wedge_map,
                                  std::vector<std::uint32_t>& vertices, const AttributeOverrides& overrides = {});
+
+// Faces that repeat an earlier face: the same corner vertices in the same cyclic order (from any corner) and
+// the same material. Such a face draws nothing the earlier one does not (exporters write some twice: the
+// corpus's MakeHuman hair has 152), but it makes each of its edges non-manifold, which stops the simplifiers
+// around it. Ascending ids; faces with a repeated vertex are never listed, nor a face wound the other way
+// (a back face is drawn differently).
+std::vector<std::uint32_t> repeated_faces(const Mesh& mesh);
+
+// A copy of `mesh` without the listed faces (ascending ids); vertices and wedges stay as they are.
+Mesh without_faces(const Mesh& mesh, std::span<const std::uint32_t> faces);
 
 // Returns a mesh whose faces are all triangles (as for_each_face_triangle() makes them); every other array
 // is shared unchanged. `triangle_face` (optional) receives the source face of each triangle.

@@ -138,10 +138,13 @@ struct SimplifyResult {
   // Faces that are quads before (input) and after; only the polychord engine outputs quads.
   std::size_t quads_before = 0;
   std::size_t quads_after = 0;
+  // Faces of the input that repeated an earlier face (repeated_faces(), core/mesh.hpp): dropped first.
+  std::size_t repeated_faces_removed = 0;
 };
 
 // Throws std::invalid_argument listing every problem when options.validate() is not empty, and when a
-// locked vertex id is out of range for `mesh`.
+// locked vertex id is out of range for `mesh`. Faces repeating an earlier face are dropped before anything
+// else (SimplifyResult::repeated_faces_removed).
 SimplifyResult simplify(const Mesh& mesh, const SimplifyOptions& options);
 
 }  // namespace lodforge

@@ -12,6 +12,7 @@
 #include "lodforge/batch/config.hpp"
 #include "lodforge/batch/report.hpp"
 #include "lodforge/batch/shard.hpp"
+#include "lodforge/core/validate.hpp"
 
 namespace lodforge::batch {
 namespace {
@@ -302,6 +303,29 @@ TEST(BatchRunner, DuplicateMeshesAreSimplifiedOnce) {
     EXPECT_EQ(a["lods"][k]["triangles"], b["lods"][k]["triangles"]);
   }
   EXPECT_EQ(io::read_file(dir / "out/props/dup_a_LOD2.obj"), io::read_file(dir / "out/props/dup_b_LOD2.obj"));
+}
+
+// An asset with faces written twice: the report counts them under "input", and its LODs are those of the
+// clean mesh (no repeated face, no non-manifold edge left).
+TEST(BatchRunner, RepeatedFacesAreCountedAndDropped) {
+  const fs::path dir = testing::temp_dir("batch_runner_repeated");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 6);
+  const Mesh clean = testing::make_uv_sphere(12, 16);
+  const Mesh twice = testing::with_repeated_faces(clean, 4);
+  const std::size_t copies = twice.face_count() - clean.face_count();
+  io::save_asset(testlib::asset_of({twice}, io::Format::obj), lib.root / "props/repeated.obj");
+  const RunResult r = run(lib.root, dir / "out", 2);
+  const Json& a = record_of(r.report, "props/repeated.obj");
+  ASSERT_EQ(a["status"], "ok") << a["error"];
+  EXPECT_EQ(a["input"]["repeated_faces"], copies);
+  EXPECT_EQ(record_of(r.report, "props/dup_a.obj")["input"]["repeated_faces"], 0);
+  EXPECT_TRUE(check_report(r.report).empty());
+  for (int k = 0; k < 3; ++k) {
+    const Mesh lod = io::load_asset(dir / "out/props" / ("repeated_LOD" + std::to_string(k + 1) + ".obj")).meshes.at(0);
+    EXPECT_TRUE(repeated_faces(lod).empty()) << "LOD " << k + 1;
+    const ValidationReport v = validate(lod);
+    EXPECT_EQ(v.non_manifold_edges, 0u) << "LOD " << k + 1;
+  }
 }
 
 TEST(BatchRunner, UnmatchedAssetsAreSkippedWithTheReason) {

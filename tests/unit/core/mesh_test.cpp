@@ -81,5 +81,41 @@ TEST(Triangulation, TriangulatedMeshUsesTheSameTrianglesAndKeepsWinding) {
   EXPECT_EQ(t.triangle_count(), m.triangle_count());
 }
 
+// Faces repeating an earlier one: same corner cycle (from any corner), same winding, same material.
+TEST(RepeatedFaces, ListsLaterCopiesOfTheSameFaceOnly) {
+  Mesh m;
+  m.materials.resize(2);
+  std::uint32_t w[6];
+  for (int i = 0; i < 6; ++i) w[i] = m.add_vertex_with_wedge({{static_cast<float>(i % 3), static_cast<float>(i / 3), 0}});
+  const std::uint32_t extra = static_cast<std::uint32_t>(m.wedge_vertex.size());
+  m.wedge_vertex.push_back(1);  // a second wedge of vertex 1 (a seam): repeats compare vertices, not wedges
+  m.add_face({w[0], w[1], w[4], w[3]});      // 0
+  m.add_face({w[1], w[2], w[5], w[4]});      // 1
+  m.add_face({w[4], w[3], w[0], extra});     // 2: face 0 from another corner, through the other wedge
+  m.add_face({w[3], w[4], w[1], w[0]});      // 3: face 0 wound the other way (a back face): kept
+  m.add_face({w[1], w[2], w[5], w[4]}, 1);   // 4: face 1 in another material: kept
+  m.add_face({w[2], w[5], w[4], w[1]});      // 5: face 1 again
+  m.add_face({w[0], w[1], w[4], w[3]});      // 6: face 0 a third time
+  m.add_face({w[0], w[1], w[1]});            // 7: degenerate
+  m.add_face({w[0], w[1], w[1]});            // 8: degenerate, never listed
+  EXPECT_EQ(repeated_faces(m), (std::vector<std::uint32_t>{2, 5, 6}));
+
+  m.face_group = {0, 1, 2, 3, 4, 5, 6, 7, 8};
+  m.groups.resize(9);
+  const std::vector<std::uint32_t> drop = repeated_faces(m);
+  const Mesh kept = without_faces(m, drop);
+  ASSERT_EQ(kept.face_count(), 6u);
+  EXPECT_EQ(kept.face_group, (std::vector<std::uint32_t>{0, 1, 3, 4, 7, 8}));
+  EXPECT_EQ(kept.face_material, (std::vector<std::uint32_t>{0, 0, 0, 1, 0, 0}));
+  EXPECT_EQ(kept.positions, m.positions);
+  EXPECT_EQ(kept.wedge_vertex, m.wedge_vertex);
+  for (std::size_t f = 0; f < 2; ++f) {
+    EXPECT_EQ(kept.face_size(f), 4u);
+    for (std::uint32_t c = 0; c < 4; ++c) EXPECT_EQ(kept.corner_wedge[kept.face_offsets[f] + c], m.corner_wedge[m.face_offsets[f] + c]);
+  }
+  EXPECT_TRUE(repeated_faces(kept).empty());
+  EXPECT_EQ(without_faces(m, {}), m);
+}
+
 }  // namespace
 }  // namespace lodforge

@@ -387,6 +387,32 @@ TEST(EdgeCollapse, NonManifoldInputReportsNothingNew) {
   }
 }
 
+// Faces an exporter wrote twice make their edges non-manifold, which would lock the simplifier around them;
+// simplify() drops them first and gives what the clean mesh gives, to a ratio of the input as it was.
+TEST(EdgeCollapse, RepeatedFacesAreDroppedFirst) {
+  const Mesh clean = make_bumpy_sphere(20, 24);
+  const Mesh repeated = testing::with_repeated_faces(clean, 3);
+  const std::size_t copies = repeated.face_count() - clean.face_count();
+  ASSERT_EQ(repeated_faces(repeated).size(), copies);
+  ASSERT_GT(validate(repeated).non_manifold_edges, 0u);
+  for (Engine engine : {Engine::edge_collapse, Engine::multiple_choice}) {
+    SimplifyOptions o{.target_ratio = 0.1};
+    o.engine = engine;
+    const SimplifyResult r = simplify(repeated, o);
+    EXPECT_EQ(r.repeated_faces_removed, copies);
+    EXPECT_EQ(r.triangles_before, repeated.triangle_count());
+    SimplifyOptions same = o;
+    same.target_triangles = static_cast<std::size_t>(std::round(0.1 * static_cast<double>(repeated.triangle_count())));
+    const SimplifyResult c = simplify(clean, same);
+    EXPECT_EQ(c.repeated_faces_removed, 0u);
+    EXPECT_EQ(r.triangles_after, c.triangles_after);
+    EXPECT_TRUE(r.mesh == c.mesh) << "engine " << static_cast<int>(engine);
+    const ValidationReport v = validate(r.mesh);
+    EXPECT_EQ(v.non_manifold_edges, 0u);
+    EXPECT_EQ(v.duplicate_faces, 0u);
+  }
+}
+
 TEST(EdgeCollapse, NonFinitePositionsAreLeftAlone) {
   Mesh m = make_bumpy_grid(10);
   m.positions[60][0] = std::numeric_limits<float>::quiet_NaN();
