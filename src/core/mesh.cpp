@@ -103,7 +103,7 @@ std::vector<std::uint32_t> repeated_faces(const Mesh& mesh) {
     }
     return s;
   };
-  auto material = [&](std::uint32_t f) { return mesh.face_material.empty() ? 0u : mesh.face_material[f]; };
+  auto material = [&](std::uint32_t f) { return f < mesh.face_material.size() ? mesh.face_material[f] : 0u; };
   auto simple = [&](std::uint32_t f) {
     const std::uint32_t begin = mesh.face_offsets[f], k = mesh.face_size(f);
     for (std::uint32_t i = 0; i < k; ++i) {
@@ -131,7 +131,7 @@ std::vector<std::uint32_t> repeated_faces(const Mesh& mesh) {
   std::vector<std::uint32_t> repeats;
   for (std::uint32_t f = 0; f < faces; ++f) {
     const std::uint32_t k = mesh.face_size(f);
-    if (k < 3 || !simple(f)) continue;
+    if (k < 3 || !face_indices_in_range(mesh, f) || !simple(f)) continue;
     const std::uint32_t begin = mesh.face_offsets[f], s = canonical_start(f);
     std::uint64_t h = 0x9E3779B97F4A7C15ull ^ (std::uint64_t{k} << 32 | material(f));
     for (std::uint32_t i = 0; i < k; ++i) {

@@ -183,8 +183,8 @@ Mesh compact_vertices_and_wedges(const Mesh& m, std::vector<std::uint32_t>& wedg
 // Faces that repeat an earlier face: the same corner vertices in the same cyclic order (from any corner) and
 // the same material. Such a face draws nothing the earlier one does not (exporters write some twice: the
 // corpus's MakeHuman hair has 152), but it makes each of its edges non-manifold, which stops the simplifiers
-// around it. Ascending ids; faces with a repeated vertex are never listed, nor a face wound the other way
-// (a back face is drawn differently).
+// around it. Ascending ids; faces with a repeated vertex or an out-of-range index are never listed, nor a
+// face wound the other way (a back face is drawn differently).
 std::vector<std::uint32_t> repeated_faces(const Mesh& mesh);
 
 // A copy of `mesh` without the listed faces (ascending ids); vertices and wedges stay as they are.

@@ -98,15 +98,17 @@ TEST(RepeatedFaces, ListsLaterCopiesOfTheSameFaceOnly) {
   m.add_face({w[0], w[1], w[4], w[3]});      // 6: face 0 a third time
   m.add_face({w[0], w[1], w[1]});            // 7: degenerate
   m.add_face({w[0], w[1], w[1]});            // 8: degenerate, never listed
+  m.add_face({w[0], w[1], 99});              // 9: an out-of-range wedge, never read
+  m.add_face({w[0], w[1], 99});              // 10
   EXPECT_EQ(repeated_faces(m), (std::vector<std::uint32_t>{2, 5, 6}));
 
-  m.face_group = {0, 1, 2, 3, 4, 5, 6, 7, 8};
-  m.groups.resize(9);
+  m.face_group = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10};
+  m.groups.resize(11);
   const std::vector<std::uint32_t> drop = repeated_faces(m);
   const Mesh kept = without_faces(m, drop);
-  ASSERT_EQ(kept.face_count(), 6u);
-  EXPECT_EQ(kept.face_group, (std::vector<std::uint32_t>{0, 1, 3, 4, 7, 8}));
-  EXPECT_EQ(kept.face_material, (std::vector<std::uint32_t>{0, 0, 0, 1, 0, 0}));
+  ASSERT_EQ(kept.face_count(), 8u);
+  EXPECT_EQ(kept.face_group, (std::vector<std::uint32_t>{0, 1, 3, 4, 7, 8, 9, 10}));
+  EXPECT_EQ(kept.face_material, (std::vector<std::uint32_t>{0, 0, 0, 1, 0, 0, 0, 0}));
   EXPECT_EQ(kept.positions, m.positions);
   EXPECT_EQ(kept.wedge_vertex, m.wedge_vertex);
   for (std::size_t f = 0; f < 2; ++f) {
