@@ -1064,9 +1064,10 @@ PolychordResult simplify_polychord(const Mesh& mesh, const PolychordOptions& opt
   PolychordResult r = engine.run();
   r.recovered_quads = made;
   // Triangles left by neighbouring runs often pair up into quads without moving anything (quad_recovery.hpp:
-  // nearly coplanar pairs whose shared edge is the longest side, and whose other diagonal is not an edge).
+  // nearly coplanar pairs whose shared edge is the longest side and the quad's shorter diagonal, so that it
+  // splits back into the same triangles, and whose other diagonal is not an edge).
   if (count_face_kinds(r.mesh).triangles >= 2) {
-    r.mesh = recover_quads(r.mesh, {}, &r.paired_triangles);
+    r.mesh = recover_quads(r.mesh, {.keep_triangles = true}, &r.paired_triangles);
     r.quads_after += r.paired_triangles;
   }
   r.quads_before = kinds.quads;

@@ -81,6 +81,7 @@ Mesh recover_quads(const Mesh& mesh, const QuadRecoveryOptions& options, std::si
         diagonal < dot(b - d, b - d)) {
       continue;
     }
+    if (options.keep_triangles && quad_triangulation_start(a, d, b, c) != 0) continue;
     // Quad a-d-b-c: corner angles.
     const std::array<Vec3d, 4> q{a, d, b, c};
     double deviation = 0.0;

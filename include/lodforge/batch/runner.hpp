@@ -42,8 +42,9 @@ namespace lodforge::batch {
 // within 0.1 degree one wedge, seam UV snap, polychord surface fit and triangle budget; 5 polychord diagonal
 // collapses, one fit sample per triangle, fit convergence stop; 6 quads that split into manifold triangles;
 // 7 polychord attribute quadrics (merged wedges' optimal values, tangents recomputed); 8 faces repeating an
-// earlier face dropped before simplifying.
-inline constexpr const char* kAlgorithmVersion = "lodforge-0.1.0/batch-8";
+// earlier face dropped before simplifying; 9 polychord outputs re-pair triangles only into quads that split back
+// the same way, and the triangle engine starts over where the quad engine made under half the reduction.
+inline constexpr const char* kAlgorithmVersion = "lodforge-0.1.0/batch-9";
 inline constexpr const char* kLodforgeVersion = "0.1.0";
 
 // Estimated peak memory of one asset in flight. Measured with `lodforge run`: the whole chain (loaded Mesh,

@@ -20,6 +20,9 @@ namespace lodforge::quad {
 struct QuadRecoveryOptions {
   double max_dihedral_deg = 20.0;
   double min_corner_deg = 45.0;
+  // Pair only where the quad splits back into the same two triangles (a-b its shorter diagonal, as
+  // for_each_face_triangle() splits it): the surface is unchanged. For outputs, whose triangles are final.
+  bool keep_triangles = false;
 };
 
 // Returns the mesh with paired triangles replaced by quads (each quad takes the place of the first of its two

@@ -414,6 +414,73 @@ TEST(QuadRecovery, LeavesPairsWhoseOtherDiagonalIsAnEdge) {
   EXPECT_EQ(validate(triangulated(out)).non_manifold_edges, 0u);
 }
 
+// keep_triangles (outputs): a pair is a quad only where the quad splits back into the same two triangles.
+TEST(QuadRecovery, KeepTrianglesPairsOnlyAlongTheShorterDiagonal) {
+  // Triangles a-b-c and b-a-d, 3 degrees apart: the shared edge a-b (length 2) is the longest side of both.
+  // With c-d of length 2.2 the quad splits along a-b again; with c-d of length 1.8 it would split along c-d.
+  for (const double half : {1.1, 0.9}) {
+    Mesh pair;
+    for (auto p : {Vec3f{{0, 0, 0}}, Vec3f{{2, 0, 0}}, Vec3f{{1, static_cast<float>(half), 0}},
+                   Vec3f{{1, -static_cast<float>(half), 0.1f}}}) {
+      testing::add_point(pair, p[0], p[1], p[2]);
+    }
+    pair.add_face({0, 1, 2});
+    pair.add_face({1, 0, 3});
+    std::size_t loose = 0, kept = 0;
+    recover_quads(pair, {}, &loose);
+    const Mesh out = recover_quads(pair, {.keep_triangles = true}, &kept);
+    EXPECT_EQ(loose, 1u) << half;
+    EXPECT_EQ(kept, half > 1.0 ? 1u : 0u) << half;
+    // Whatever was paired, the triangles are the input's.
+    std::vector<std::uint32_t> in = triangle_vertex_indices(pair), now = triangle_vertex_indices(out);
+    auto sorted_triangles = [](const std::vector<std::uint32_t>& idx) {
+      std::vector<std::array<std::uint32_t, 3>> t;
+      for (std::size_t i = 0; i + 2 < idx.size(); i += 3) {
+        std::array<std::uint32_t, 3> tri{idx[i], idx[i + 1], idx[i + 2]};
+        std::rotate(tri.begin(), std::min_element(tri.begin(), tri.end()), tri.end());
+        t.push_back(tri);
+      }
+      std::sort(t.begin(), t.end());
+      return t;
+    };
+    EXPECT_EQ(sorted_triangles(now), sorted_triangles(in)) << half;
+  }
+}
+
+// A mesh the quad engine can barely simplify: a torus of hexagons (pairs of quads merged; n-gon corners never
+// move) with two rings of quads, of which one can go. That is far less than half of the way to 50%, so the
+// triangle engine simplifies the input itself (not the quad engine's output).
+TEST(Polychord, TriangleEngineStartsOverWhereQuadsAreTooFewToGoHalfway) {
+  const Mesh quads = make_torus(24, 12);
+  Mesh mesh = quads;
+  mesh.face_offsets.assign(1, 0);
+  mesh.corner_wedge.clear();
+  mesh.face_material.clear();
+  for (std::size_t f = 0; f < quads.face_count(); ++f) {
+    const std::uint32_t* c = &quads.corner_wedge[quads.face_offsets[f]];
+    const std::size_t row = f / 24, col = f % 24;
+    if (row < 2) {
+      mesh.add_face(c, 4);
+    } else if (col % 2 == 0) {  // quads (i, j) and (i + 1, j) as one hexagon
+      const std::uint32_t* n = &quads.corner_wedge[quads.face_offsets[f + 1]];
+      const std::uint32_t hex[6] = {c[0], c[1], n[1], n[2], c[2], c[3]};
+      mesh.add_face(hex, 6);
+    }
+  }
+  ASSERT_EQ(count_face_kinds(mesh).quads, 48u);
+  SimplifyOptions o{.target_ratio = 0.5};
+  o.engine = Engine::polychord;
+  const SimplifyResult r = simplify(mesh, o);
+  // The quad engine alone does make progress here, but not half of it.
+  const PolychordResult q = simplify_polychord(mesh, {.target_ratio = 0.5});
+  ASSERT_LT(q.triangles_after, mesh.triangle_count());
+  ASSERT_LT(2 * (mesh.triangle_count() - q.triangles_after), mesh.triangle_count() - r.triangles_after);
+  const SimplifyResult t = simplify(mesh, {.target_triangles = r.triangles_after});
+  EXPECT_TRUE(r.mesh == recover_quads(t.mesh, {.keep_triangles = true}));
+  EXPECT_EQ(r.triangles_after, t.triangles_after);
+  EXPECT_EQ(r.quads_before, 48u);
+}
+
 TEST(QuadRecovery, FeedsThePolychordEngineOnTriangleInput) {
   const Mesh tris = triangulated(make_cylinder(16, 8));
   const PolychordResult r = simplify_polychord(tris, {.target_ratio = 0.5});
