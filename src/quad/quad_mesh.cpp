@@ -141,8 +141,10 @@ QuadMesh::QuadMesh(const Mesh& mesh) {
     for (std::uint32_t i = 0; i < n; ++i) {
       const std::uint32_t v = corner_vertex_[b + i];
       vertex_faces_[v].push_back(f);
-      // n-gons are carried unchanged: their corners never move.
-      if (n > 4 || !finite(positions_[v])) locked_[v] = 1;
+      // n-gon corners move like any other vertex (a weld that merges two of them shrinks the polygon; one
+      // that folds it is refused). Locked, they had held the subdivision cages of the corpus (16 pentagons on
+      // the spot cage) far from the triangle engine's error: 1.90x against 1.37x at 50%.
+      if (!finite(positions_[v])) locked_[v] = 1;
     }
   }
 

@@ -1,9 +1,9 @@
-// The working mesh of the quad part: a polygon mesh (triangles, quads, and n-gons carried as they are) with
+// The working mesh of the quad part: a polygon mesh (triangles, quads and n-gons; chords stop at n-gons) with
 // per-vertex face lists, and the generalised weld operator of ALGORITHMS.md 4.5 that applies any partition of
 // vertices into islands in one step, validates the result and rolls back on failure.
 //
-// Ids are those of the input mesh throughout (faces only shrink: a quad may become a triangle or die); only
-// to_mesh() compacts. Positions are double while working.
+// Ids are those of the input mesh throughout (faces only shrink: a quad may become a triangle or die, an n-gon
+// lose corners); only to_mesh() compacts. Positions are double while working.
 //
 //   weld({{a, b}, {c, d}}, {x_ab, x_cd}):
 //
@@ -69,8 +69,8 @@ struct WeldResult {
 class QuadMesh {
  public:
   // Faces with fewer than 3 corners, out-of-range indices or a repeated vertex are dropped (they carry no
-  // surface). Vertices on non-manifold or inconsistently oriented edges, on n-gons (more than 4 corners) and
-  // with a non-finite position are locked.
+  // surface). Vertices on non-manifold or inconsistently oriented edges and with a non-finite position are
+  // locked.
   explicit QuadMesh(const Mesh& mesh);
 
   std::size_t vertex_count() const { return positions_.size(); }

@@ -447,9 +447,9 @@ TEST(QuadRecovery, KeepTrianglesPairsOnlyAlongTheShorterDiagonal) {
   }
 }
 
-// A mesh the quad engine can barely simplify: a torus of hexagons (pairs of quads merged; n-gon corners never
-// move) with two rings of quads, of which one can go. That is far less than half of the way to 50%, so the
-// triangle engine simplifies the input itself (not the quad engine's output).
+// A mesh the quad engine can barely simplify: a torus of triangles with one ring of quads. Its runs remove at
+// most the ring and the triangles at its chords' ends, far less than half of the way to 50%, so the triangle
+// engine simplifies the input itself (not the quad engine's output).
 TEST(Polychord, TriangleEngineStartsOverWhereQuadsAreTooFewToGoHalfway) {
   const Mesh quads = make_torus(24, 12);
   Mesh mesh = quads;
@@ -458,16 +458,14 @@ TEST(Polychord, TriangleEngineStartsOverWhereQuadsAreTooFewToGoHalfway) {
   mesh.face_material.clear();
   for (std::size_t f = 0; f < quads.face_count(); ++f) {
     const std::uint32_t* c = &quads.corner_wedge[quads.face_offsets[f]];
-    const std::size_t row = f / 24, col = f % 24;
-    if (row < 2) {
+    if (f < 24) {
       mesh.add_face(c, 4);
-    } else if (col % 2 == 0) {  // quads (i, j) and (i + 1, j) as one hexagon
-      const std::uint32_t* n = &quads.corner_wedge[quads.face_offsets[f + 1]];
-      const std::uint32_t hex[6] = {c[0], c[1], n[1], n[2], c[2], c[3]};
-      mesh.add_face(hex, 6);
+    } else {
+      mesh.add_face({c[0], c[1], c[2]});
+      mesh.add_face({c[0], c[2], c[3]});
     }
   }
-  ASSERT_EQ(count_face_kinds(mesh).quads, 48u);
+  ASSERT_EQ(count_face_kinds(mesh).quads, 24u);
   SimplifyOptions o{.target_ratio = 0.5};
   o.engine = Engine::polychord;
   const SimplifyResult r = simplify(mesh, o);
@@ -478,7 +476,44 @@ TEST(Polychord, TriangleEngineStartsOverWhereQuadsAreTooFewToGoHalfway) {
   const SimplifyResult t = simplify(mesh, {.target_triangles = r.triangles_after});
   EXPECT_TRUE(r.mesh == recover_quads(t.mesh, {.keep_triangles = true}));
   EXPECT_EQ(r.triangles_after, t.triangles_after);
-  EXPECT_EQ(r.quads_before, 48u);
+  EXPECT_EQ(r.quads_before, 24u);
+}
+
+// n-gon corners move like other vertices: a grid of quads with four hexagons (quad pairs merged) reaches 50%
+// with some hexagon corner moved or merged away, and stays valid.
+TEST(Polychord, NgonCornersMove) {
+  const Mesh quads = make_quad_grid(12, 12);
+  Mesh mesh = quads;
+  mesh.face_offsets.assign(1, 0);
+  mesh.corner_wedge.clear();
+  mesh.face_material.clear();
+  std::set<std::uint32_t> hex_corners;
+  for (std::size_t f = 0; f < quads.face_count(); ++f) {
+    const std::uint32_t* c = &quads.corner_wedge[quads.face_offsets[f]];
+    const std::size_t row = f / 12, col = f % 12;
+    const bool merge = (row == 3 || row == 8) && (col == 3 || col == 8);
+    const bool merged_away = (row == 3 || row == 8) && (col == 4 || col == 9);
+    if (merged_away) continue;
+    if (!merge) {
+      mesh.add_face(c, 4);
+      continue;
+    }
+    const std::uint32_t* n = &quads.corner_wedge[quads.face_offsets[f + 1]];
+    const std::uint32_t hex[6] = {c[0], c[1], n[1], n[2], c[2], c[3]};
+    mesh.add_face(hex, 6);
+    for (std::uint32_t w : hex) hex_corners.insert(mesh.wedge_vertex[w]);
+  }
+  ASSERT_EQ(count_face_kinds(mesh).polygons, 4u);
+  // A little height, so that moving a corner has a cost and a place to go.
+  for (Vec3f& p : mesh.positions) p[2] = 0.2f * std::sin(0.9f * p[0]) * std::cos(0.7f * p[1]);
+  const PolychordResult r = simplify_polychord(mesh, {.target_ratio = 0.5});
+  EXPECT_TRUE(r.target_reached);
+  expect_valid(r.mesh);
+  std::set<std::array<float, 3>> out;
+  for (const Vec3f& p : r.mesh.positions) out.insert(p.v);
+  std::size_t gone = 0;
+  for (std::uint32_t v : hex_corners) gone += out.count(mesh.positions[v].v) == 0;
+  EXPECT_GT(gone, 0u);
 }
 
 TEST(QuadRecovery, FeedsThePolychordEngineOnTriangleInput) {
