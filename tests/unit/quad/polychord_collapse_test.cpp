@@ -447,24 +447,30 @@ TEST(QuadRecovery, KeepTrianglesPairsOnlyAlongTheShorterDiagonal) {
   }
 }
 
+// `source` with its faces rebuilt: per_face(out, f, corner wedges of face f) adds what face f becomes.
+template <class PerFace>
+Mesh refaced(const Mesh& source, PerFace&& per_face) {
+  Mesh out = source;
+  out.face_offsets.assign(1, 0);
+  out.corner_wedge.clear();
+  out.face_material.clear();
+  for (std::size_t f = 0; f < source.face_count(); ++f) per_face(out, f, &source.corner_wedge[source.face_offsets[f]]);
+  return out;
+}
+
 // A mesh the quad engine can barely simplify: a torus of triangles with one ring of quads. Its runs remove at
 // most the ring and the triangles at its chords' ends, far less than half of the way to 50%, so the triangle
 // engine simplifies the input itself (not the quad engine's output).
 TEST(Polychord, TriangleEngineStartsOverWhereQuadsAreTooFewToGoHalfway) {
   const Mesh quads = make_torus(24, 12);
-  Mesh mesh = quads;
-  mesh.face_offsets.assign(1, 0);
-  mesh.corner_wedge.clear();
-  mesh.face_material.clear();
-  for (std::size_t f = 0; f < quads.face_count(); ++f) {
-    const std::uint32_t* c = &quads.corner_wedge[quads.face_offsets[f]];
+  Mesh mesh = refaced(quads, [&](Mesh& out, std::size_t f, const std::uint32_t* c) {
     if (f < 24) {
-      mesh.add_face(c, 4);
+      out.add_face(c, 4);
     } else {
-      mesh.add_face({c[0], c[1], c[2]});
-      mesh.add_face({c[0], c[2], c[3]});
+      out.add_face({c[0], c[1], c[2]});
+      out.add_face({c[0], c[2], c[3]});
     }
-  }
+  });
   ASSERT_EQ(count_face_kinds(mesh).quads, 24u);
   SimplifyOptions o{.target_ratio = 0.5};
   o.engine = Engine::polychord;
@@ -483,26 +489,21 @@ TEST(Polychord, TriangleEngineStartsOverWhereQuadsAreTooFewToGoHalfway) {
 // with some hexagon corner moved or merged away, and stays valid.
 TEST(Polychord, NgonCornersMove) {
   const Mesh quads = make_quad_grid(12, 12);
-  Mesh mesh = quads;
-  mesh.face_offsets.assign(1, 0);
-  mesh.corner_wedge.clear();
-  mesh.face_material.clear();
   std::set<std::uint32_t> hex_corners;
-  for (std::size_t f = 0; f < quads.face_count(); ++f) {
-    const std::uint32_t* c = &quads.corner_wedge[quads.face_offsets[f]];
+  Mesh mesh = refaced(quads, [&](Mesh& out, std::size_t f, const std::uint32_t* c) {
     const std::size_t row = f / 12, col = f % 12;
     const bool merge = (row == 3 || row == 8) && (col == 3 || col == 8);
     const bool merged_away = (row == 3 || row == 8) && (col == 4 || col == 9);
-    if (merged_away) continue;
+    if (merged_away) return;
     if (!merge) {
-      mesh.add_face(c, 4);
-      continue;
+      out.add_face(c, 4);
+      return;
     }
     const std::uint32_t* n = &quads.corner_wedge[quads.face_offsets[f + 1]];
     const std::uint32_t hex[6] = {c[0], c[1], n[1], n[2], c[2], c[3]};
-    mesh.add_face(hex, 6);
-    for (std::uint32_t w : hex) hex_corners.insert(mesh.wedge_vertex[w]);
-  }
+    out.add_face(hex, 6);
+    for (std::uint32_t w : hex) hex_corners.insert(out.wedge_vertex[w]);
+  });
   ASSERT_EQ(count_face_kinds(mesh).polygons, 4u);
   // A little height, so that moving a corner has a cost and a place to go.
   for (Vec3f& p : mesh.positions) p[2] = 0.2f * std::sin(0.9f * p[0]) * std::cos(0.7f * p[1]);
