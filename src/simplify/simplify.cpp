@@ -123,9 +123,9 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options) {
   const double quad_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   SimplifyResult r;
   if (q.triangles_after > target) {
-    // Where chords are cut short everywhere (triangles and n-gons between almost every pair of quads), the
-    // quad engine stops early, and its few collapses, all on short chords, cost more than the whole reduction
-    // does with the triangle engine: on the corpus's mixedFaring (a third triangles, a sixth n-gons) it made
+    // Where there are too few chords (few quads, or triangles between almost every pair of them), the quad
+    // engine stops early, and its few collapses, all on short chords, can cost more than the whole reduction
+    // does with the triangle engine: on the corpus's mixedFaring (then with its n-gon corners locked) it made
     // 14% of the reduction to 50% and left the LOD 3.8x the triangle engine's mean distance. When it made less
     // than half of the reduction asked, the triangle engine starts again from the input.
     const std::size_t before = mesh.triangle_count();
