@@ -45,6 +45,10 @@ struct PolychordOptions {
   double triangle_penalty = 0.5;
   // A run ranks no better than its worst rung's cost per removed triangle times this: keeps long, cheap runs
   // from dragging an expensive rung (a feature) along. 0 = rank by the mean cost per removed triangle only.
+  // A run's mean cost per removed triangle (triangle penalty aside) is at most its worst rung's, so from 1 up
+  // the worst rung decides every rank, and the run's length only breaks ties. Measured at 50% with 0 against
+  // 100: Suzanne 3.61x against 2.82x the triangle engine's mean distance, proxy741 1.94x against 1.30x, spot
+  // 1.02x against 0.80x (at higher quad fractions: spot 0.99 against 0.91).
   double worst_rung_weight = 100.0;
   // Most triangles runs may leave behind, as a fraction of the faces expected at the target (target / 2);
   // 1 = no limit. Once it is spent, runs that leave more rank over_budget_factor times worse (and runs that
