@@ -254,6 +254,10 @@ void register_simplify(CLI::App& app) {
           std::printf("  note: dropped %zu face(s) repeating an earlier face (same corners, winding and material)\n",
                       r.repeated_faces_removed);
         }
+        if (r.quad_engine_handed_over) {
+          std::printf("  note: the quad engine could make less than half of this reduction (too few quad strips); "
+                      "the triangle engine simplified the input\n");
+        }
         if (opt.engine == Engine::polychord) {
           std::printf("  quads: %zu -> %zu (quad fraction %.3f)\n", r.quads_before, r.quads_after,
                       quad::quad_stats(r.mesh).quad_fraction);

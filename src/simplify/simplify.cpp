@@ -144,6 +144,7 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options) {
       }
     }
     r = collapse::run_edge_collapse(triangulated(restart ? mesh : q.mesh), rest);
+    r.quad_engine_handed_over = restart;
     // Triangle pairs that split back into the same two triangles come back as quads (the quads the triangle
     // engine left untouched among them); pairs that would split the other way stay triangles, so the surface
     // is the triangle engine's.

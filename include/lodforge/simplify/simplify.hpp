@@ -140,6 +140,9 @@ struct SimplifyResult {
   std::size_t quads_after = 0;
   // Faces of the input that repeated an earlier face (repeated_faces(), core/mesh.hpp): dropped first.
   std::size_t repeated_faces_removed = 0;
+  // Engine::polychord only: the quad engine made less than half of the reduction, so the triangle engine
+  // simplified the input itself.
+  bool quad_engine_handed_over = false;
 };
 
 // Throws std::invalid_argument listing every problem when options.validate() is not empty, and when a

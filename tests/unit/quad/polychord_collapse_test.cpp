@@ -483,6 +483,8 @@ TEST(Polychord, TriangleEngineStartsOverWhereQuadsAreTooFewToGoHalfway) {
   EXPECT_TRUE(r.mesh == recover_quads(t.mesh, {.keep_triangles = true}));
   EXPECT_EQ(r.triangles_after, t.triangles_after);
   EXPECT_EQ(r.quads_before, 24u);
+  EXPECT_TRUE(r.quad_engine_handed_over);
+  EXPECT_FALSE(simplify(make_torus(24, 12), o).quad_engine_handed_over);
 }
 
 // n-gon corners move like other vertices: a grid of quads with four hexagons (quad pairs merged) reaches 50%
