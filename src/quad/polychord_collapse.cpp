@@ -636,12 +636,12 @@ void Engine::carry_attributes(const WeldResult& w) {
     if (members.size() < 2) continue;
     std::sort(members.begin(), members.end());
     for (std::uint32_t m : members) {
-      if (m != t && dims > 0) {
+      if (m != t) {
         merge_attribute_quadrics(wq_[t], std::span(&wg_[t * dims], dims), wq_[m],
                                  std::span<const AttributeGradient>(&wg_[m * dims], dims));
       }
     }
-    if (!write_values_ || qm_.locked(s) || dims == 0) continue;
+    if (!write_values_ || qm_.locked(s)) continue;
     if (!optimal_attributes(wq_[t], std::span<const AttributeGradient>(&wg_[t * dims], dims), qm_.position(s), opt)) {
       continue;
     }
@@ -1027,16 +1027,13 @@ PolychordResult simplify_polychord(const Mesh& mesh, const PolychordOptions& opt
   if (!(options.max_flip_angle_deg > 0.0 && options.max_flip_angle_deg < 90.0)) {
     throw std::invalid_argument("polychord: max_flip_angle_deg must be in (0, 90)");
   }
-  if (!(options.triangle_penalty >= 0.0 && std::isfinite(options.triangle_penalty)) ||
-      !(options.worst_rung_weight >= 0.0 && std::isfinite(options.worst_rung_weight)) ||
+  auto finite_non_negative = [](double x) { return x >= 0.0 && std::isfinite(x); };
+  if (!finite_non_negative(options.triangle_penalty) || !finite_non_negative(options.worst_rung_weight) ||
       !(options.max_triangle_fraction >= 0.0) || !(options.over_budget_factor >= 1.0) ||
       !(options.hard_budget_factor >= 1.0) || options.seed_rungs < 1 || std::isnan(options.max_error_abs) ||
-      !(options.diagonal_factor >= 0.0 && std::isfinite(options.diagonal_factor)) ||
-      !(options.diagonal_gate >= 0.0 && std::isfinite(options.diagonal_gate)) ||
-      !(options.normal_weight >= 0.0 && std::isfinite(options.normal_weight)) ||
-      !(options.uv_weight >= 0.0 && std::isfinite(options.uv_weight)) ||
-      !(options.color_weight >= 0.0 && std::isfinite(options.color_weight)) ||
-      !(options.attribute_cost_weight >= 0.0 && std::isfinite(options.attribute_cost_weight))) {
+      !finite_non_negative(options.diagonal_factor) || !finite_non_negative(options.diagonal_gate) ||
+      !finite_non_negative(options.normal_weight) || !finite_non_negative(options.uv_weight) ||
+      !finite_non_negative(options.color_weight) || !finite_non_negative(options.attribute_cost_weight)) {
     throw std::invalid_argument(
         "polychord: triangle_penalty, worst_rung_weight, diagonal_factor, diagonal_gate and the attribute weights "
         "must be finite and "

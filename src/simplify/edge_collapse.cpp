@@ -839,27 +839,25 @@ void CollapseMesh::setup_attributes(Parallel& parallel) {
 
   std::vector<std::uint8_t> color_sets;
   for (const auto& set : colors_) color_sets.push_back(set.empty() ? 0 : 1);
-  const AttributeLayout groups = attribute_layout({.normals = !normals_.empty(),
-                                                   .uv_area = uv_area,
-                                                   .color_sets = color_sets,
-                                                   .area = area,
-                                                   .length_unit = length_unit,
-                                                   .normal_weight = aw.normal,
-                                                   .uv_weight = aw.uv,
-                                                   .color_weight = aw.color});
-  groups_ = groups.groups;
-  dims_ = groups.dims;
+  layout_ = attribute_layout({.normals = !normals_.empty(),
+                              .uv_area = uv_area,
+                              .color_sets = color_sets,
+                              .area = area,
+                              .length_unit = length_unit,
+                              .normal_weight = aw.normal,
+                              .uv_weight = aw.uv,
+                              .color_weight = aw.color});
   bool values = !normals_.empty() || !skin_.empty() || !morphs_.empty();
   for (const auto& set : uvs_) values |= !set.empty();
   for (const auto& set : colors_) values |= !set.empty();
-  carry_ = dims_ > 0 || (blend_ && values);
-  if (dims_ == 0) return;  // geometry only: nothing below runs, the engine is exactly the plain QEM one
+  carry_ = layout_.dims > 0 || (blend_ && values);
+  if (layout_.dims == 0) return;  // geometry only: nothing below runs, the engine is exactly the plain QEM one
 
-  const auto dims = static_cast<std::size_t>(dims_);
+  const auto dims = static_cast<std::size_t>(layout_.dims);
   wq_.assign(nw, {});
   wg_.assign(nw * dims, {});
   // Scaled attribute vector of wedge w.
-  auto scaled = [&](std::uint32_t w, double* out) { groups.scaled(normals_, uvs_, colors_, w, out); };
+  auto scaled = [&](std::uint32_t w, double* out) { layout_.scaled(normals_, uvs_, colors_, w, out); };
   // Per face, the in-plane gradient basis: an attribute with corner values s0, s1, s2 has gradient
   // (s1 − s0) B1 + (s2 − s0) B2 (fit_attribute_gradient's Gram solve, done once per face instead of once per
   // attribute and corner).
@@ -928,7 +926,7 @@ Evaluation CollapseMesh::evaluate(std::uint32_t u, std::uint32_t v, bool with_co
   // 40×40 grid with a colour step at x = 12 (10% of the triangles), attribute-driven placement left 22 of 200
   // vertices within 4 units of the step, surface placement 89.
   Quadric q = surface;
-  if (dims_ > 0 && with_cost) add_attribute_quadrics(u, v, q);
+  if (layout_.dims > 0 && with_cost) add_attribute_quadrics(u, v, q);
   Evaluation ev;
   switch (rule(u, v)) {
     case EdgeRule::keep_u: ev.position = xu.pos; break;
@@ -956,7 +954,7 @@ Evaluation CollapseMesh::evaluate(std::uint32_t u, std::uint32_t v, bool with_co
       }
     }
   }
-  if (dims_ == 0) {
+  if (layout_.dims == 0) {
     const double e = q.evaluate(ev.position);
     ev.error = e / (q.weight + weight_floor_);
     ev.cost = e;
@@ -972,7 +970,7 @@ Evaluation CollapseMesh::evaluate(std::uint32_t u, std::uint32_t v, bool with_co
 // ALGORITHMS.md 2.3 "position optimisation with several wedges"): the wedge pairs across the edge's faces
 // merge, every other wedge of u and v counts alone. The geometric quadric is counted once, by the caller.
 void CollapseMesh::add_attribute_quadrics(std::uint32_t u, std::uint32_t v, Quadric& q) const {
-  const auto dims = static_cast<std::size_t>(dims_);
+  const auto dims = static_cast<std::size_t>(layout_.dims);
   auto grads = [&](std::uint32_t w) { return std::span<const AttributeGradient>(&wg_[w * dims], dims); };
   // Most edges: neither endpoint on a seam, so each has one wedge (one key, and outside permissive mode a key
   // is one wedge), read from its first face; the pair merges. Saves the star scans (a third of the time).
@@ -1147,21 +1145,19 @@ Vec2f CollapseMesh::new_uv(int set, std::uint32_t wx, std::uint32_t wt, const Ve
   // The minimiser of the merged quadric where UVs are in the metric, else the point at x's place along the
   // edge; either way projected onto the edge's UV segment, which lies inside the chart away from its outline.
   double s = t;
-  for (const AttributeGroup& g : groups_) {
-    if (g.type != AttributeGroup::Type::uv || g.set != set) continue;
-    const auto dims = static_cast<std::size_t>(dims_);
-    const double alpha = wq_[wx].alpha + wq_[wt].alpha;
-    if (!(alpha > 0.0)) break;
+  const AttributeGroup* g = layout_.find(AttributeGroup::Type::uv, set);
+  const double alpha = g != nullptr ? wq_[wx].alpha + wq_[wt].alpha : 0.0;
+  if (alpha > 0.0) {
+    const auto dims = static_cast<std::size_t>(layout_.dims);
     double opt[2];
     for (int i = 0; i < 2; ++i) {
-      const AttributeGradient& gx = wg_[wx * dims + static_cast<std::size_t>(g.dim + i)];
-      const AttributeGradient& gt = wg_[wt * dims + static_cast<std::size_t>(g.dim + i)];
-      opt[i] = (dot(gx.g + gt.g, x) + gx.d + gt.d) / alpha / g.scale;
+      const AttributeGradient& gx = wg_[wx * dims + static_cast<std::size_t>(g->dim + i)];
+      const AttributeGradient& gt = wg_[wt * dims + static_cast<std::size_t>(g->dim + i)];
+      opt[i] = (dot(gx.g + gt.g, x) + gx.d + gt.d) / alpha / g->scale;
     }
     const double ex = double{to[0]} - from[0], ey = double{to[1]} - from[1];
     const double len2 = ex * ex + ey * ey;
     if (len2 > 0.0) s = std::clamp(((opt[0] - from[0]) * ex + (opt[1] - from[1]) * ey) / len2, 0.0, 1.0);
-    break;
   }
   if (!std::isfinite(s)) s = 1.0;
   // At a seam vertex (either end) the UV takes the nearer end's value. On a UV seam the UV segment is a
@@ -1549,7 +1545,7 @@ void CollapseMesh::carry_attributes(const Check& c, const Vec3d& x, Scratch& s) 
   if (moved) {
     const double t = edge_t(a, b, x);
     const auto ft = static_cast<float>(t);
-    const auto dims = static_cast<std::size_t>(dims_);
+    const auto dims = static_cast<std::size_t>(layout_.dims);
     for (std::size_t j = 0; j < s.wedge_map.size(); j += 2) {
       const std::uint32_t wx = s.wedge_map[j], wt = s.wedge_map[j + 1];
       bool first = true;  // a target takes its values from its first source only
@@ -1566,11 +1562,8 @@ void CollapseMesh::carry_attributes(const Check& c, const Vec3d& x, Scratch& s) 
                                  std::span<const AttributeGradient>(&wg_[wx * dims], dims));
         optimal = optimal_attributes(merged, std::span<const AttributeGradient>(sums.data(), dims), x, s.attr);
       }
-      auto group_of = [&](AttributeGroup::Type type, int set) -> const AttributeGroup* {
-        for (const AttributeGroup& g : groups_) {
-          if (g.type == type && g.set == set) return optimal ? &g : nullptr;
-        }
-        return nullptr;
+      auto group_of = [&](AttributeGroup::Type type, int set) {
+        return optimal ? layout_.find(type, set) : nullptr;
       };
       if (!normals_.empty()) {
         Vec3f n = normals_[wx] + (normals_[wt] - normals_[wx]) * ft;
@@ -1605,8 +1598,8 @@ void CollapseMesh::carry_attributes(const Check& c, const Vec3d& x, Scratch& s) 
     }
     if (!skin_.empty()) skin_[b] = blended_skin(a, b, t);
   }
-  if (dims_ > 0) {
-    const auto dims = static_cast<std::size_t>(dims_);
+  if (layout_.dims > 0) {
+    const auto dims = static_cast<std::size_t>(layout_.dims);
     for (std::size_t j = 0; j < s.wedge_map.size(); j += 2) {
       const std::uint32_t wx = s.wedge_map[j], wt = s.wedge_map[j + 1];
       if (wx == wt) continue;

@@ -279,10 +279,9 @@ class CollapseMesh {
 
   // --- seams, attributes, skin (ALGORITHMS.md 2, 6) ---
   std::vector<std::uint32_t> tri_key_;  // key of each corner when it is not simply the wedge (see VertexKind)
-  std::vector<AttributeGroup> groups_;    // attribute_layout() (metric/attribute_quadric.hpp)
-  int dims_ = 0;                           // scaled attribute dimensions in the metric (0: geometry only)
+  AttributeLayout layout_;                 // attribute_layout() (metric/attribute_quadric.hpp); dims 0: geometry only
   std::vector<AttributeQuadric> wq_;       // per wedge
-  std::vector<AttributeGradient> wg_;      // dims_ per wedge
+  std::vector<AttributeGradient> wg_;      // layout_.dims per wedge
   bool blend_ = false;                     // attribute_placement optimal: moved wedges get new values
   bool carry_ = false;                     // apply() has attribute work to do
   double skin_cost_scale_ = 0.0;           // λ_skin × L² (0: no skin term)
