@@ -52,17 +52,10 @@ Bounds3 compute_bounds(const Mesh& mesh) {
 }
 
 Vec3d face_normal_newell(const Mesh& mesh, std::size_t f) {
-  Vec3d n{};
-  const std::uint32_t begin = mesh.face_offsets[f], end = mesh.face_offsets[f + 1];
-  for (std::uint32_t c = begin; c < end; ++c) {
-    const std::uint32_t cn = (c + 1 == end) ? begin : c + 1;
-    const Vec3d a = to_double(mesh.positions[mesh.corner_vertex(c)]);
-    const Vec3d b = to_double(mesh.positions[mesh.corner_vertex(cn)]);
-    n[0] += (a[1] - b[1]) * (a[2] + b[2]);
-    n[1] += (a[2] - b[2]) * (a[0] + b[0]);
-    n[2] += (a[0] - b[0]) * (a[1] + b[1]);
-  }
-  return n;
+  const std::uint32_t begin = mesh.face_offsets[f];
+  return newell_normal(mesh.face_size(f), [&](std::size_t i) {
+    return to_double(mesh.positions[mesh.corner_vertex(begin + i)]);
+  });
 }
 
 Mesh triangulated(const Mesh& mesh, std::vector<std::uint32_t>* triangle_face) {

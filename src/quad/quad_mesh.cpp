@@ -50,22 +50,8 @@ std::uint32_t find_root(std::vector<std::uint32_t>& parent, std::uint32_t x) {
   return x;
 }
 
-// Newell normal of a polygon of `count` corners, corner i at point(i).
-template <class Point>
-Vec3d newell_of(std::size_t count, Point&& point) {
-  Vec3d n{};
-  for (std::size_t i = 0; i < count; ++i) {
-    const Vec3d& a = point(i);
-    const Vec3d& b = point((i + 1) % count);
-    n[0] += (a[1] - b[1]) * (a[2] + b[2]);
-    n[1] += (a[2] - b[2]) * (a[0] + b[0]);
-    n[2] += (a[0] - b[0]) * (a[1] + b[1]);
-  }
-  return n;
-}
-
 Vec3d newell(std::span<const Vec3d> p) {
-  return newell_of(p.size(), [&](std::size_t i) -> const Vec3d& { return p[i]; });
+  return newell_normal(p.size(), [&](std::size_t i) -> const Vec3d& { return p[i]; });
 }
 
 // Whether corner i of polygon p turns the same way as normal n (convex corner).
@@ -249,7 +235,7 @@ QuadMesh::Across QuadMesh::find_across(std::uint32_t f, std::uint32_t side) cons
 }
 
 Vec3d QuadMesh::face_normal(std::uint32_t f) const {
-  return newell_of(face_size_[f], [&](std::size_t i) -> const Vec3d& {
+  return newell_normal(face_size_[f], [&](std::size_t i) -> const Vec3d& {
     return positions_[face_vertex(f, static_cast<std::uint32_t>(i))];
   });
 }

@@ -130,6 +130,21 @@ FaceKindCounts count_face_kinds(const Mesh& mesh);
 
 Bounds3 compute_bounds(const Mesh& mesh);
 
+// Area-weighted normal direction (not normalised) of a polygon of `count` corners by Newell's method, corner i
+// at point(i) (a Vec3d). For polygons held in other forms (the quad part's working mesh, weld candidates).
+template <class Point>
+Vec3d newell_normal(std::size_t count, Point&& point) {
+  Vec3d n{};
+  for (std::size_t i = 0; i < count; ++i) {
+    const Vec3d& a = point(i);
+    const Vec3d& b = point((i + 1) % count);
+    n[0] += (a[1] - b[1]) * (a[2] + b[2]);
+    n[1] += (a[2] - b[2]) * (a[0] + b[0]);
+    n[2] += (a[0] - b[0]) * (a[1] + b[1]);
+  }
+  return n;
+}
+
 // Area-weighted face normal direction (not normalised) of polygon f, by Newell's method.
 Vec3d face_normal_newell(const Mesh& mesh, std::size_t f);
 
