@@ -4,15 +4,16 @@
 //
 // Collapses place each merged vertex at its quadric's minimiser, which bounds the distance to the planes of the
 // faces it absorbed but not to the surface between them: a strip collapse across a curved region leaves the
-// new faces cutting under (or over) it. The fit samples every face (its corners and each triangle's centroid,
-// the triangles being those evaluation and output see: quads split along the shorter diagonal), finds each
-// sample's closest point on the input surface, and moves every vertex along its normal by the weighted mean
-// of its samples' offsets (a Jacobi step of least-squares surface fitting, as in Hoppe et al., "Mesh
-// Optimization", SIGGRAPH 1993); the input's vertices pull the closest points of the simplified surface the
-// same way. Only vertices a collapse moved are fitted (the others are input vertices, on the surface already,
-// and keep their exact positions); locked and boundary ones stay. A step is taken only when no face around
-// the vertex turns by more than `max_turn_deg` (a quad's four corner triangles checked too, as it may fold
-// along either diagonal); otherwise half of it is tried, then none.
+// new faces cutting under (or over) it. The fit is least-squares surface fitting with the connectivity fixed
+// (Hoppe et al., "Mesh Optimization", SIGGRAPH 1993): each step samples the simplified surface at the midpoint
+// of every edge with a moved end (the triangles being those evaluation and output see: quads split along the
+// shorter diagonal) and finds each sample's closest point on the input; each input vertex finds its closest
+// point on the simplified surface; then every moved vertex is placed, free in 3D, to minimise the area-weighted
+// squared distances of both sets (plus a small pull towards where it was, so that a vertex the samples leave
+// free to slide stays put), by conjugate gradients. Only vertices a collapse moved are fitted (the others are
+// input vertices, on the surface already, and keep their exact positions); locked and boundary ones stay. A
+// vertex takes its step only when no face around it turns by more than `max_turn_deg` (a quad's four corner
+// triangles checked too, as it may fold along either diagonal); otherwise half of it is tried, then none.
 #pragma once
 
 #include "lodforge/core/mesh.hpp"
@@ -22,12 +23,15 @@
 namespace lodforge::quad {
 
 struct SurfaceFitOptions {
-  // At most this many steps; fewer when converged (surface_fit.cpp). Two give nearly all of the gain: on the
-  // bench four lowered no MakeHuman mean by more than 5%. On the bench's 100k-quad torus the fit converges
-  // after one step, about 0.2 s of the engine's 0.9 s (2 cores).
-  int iterations = 2;
+  // At most this many steps; fewer when converged (surface_fit.cpp). On the bench's coarse LODs (subdivision
+  // cages, Suzanne, MakeHuman proxy at 10-50%) four steps of at most half an edge came 2-9% closer than two of
+  // a quarter; the 100k-quad torus stops after two (the second moves nothing noticeably).
+  int iterations = 4;
   double max_turn_deg = 20.0;     // most a face normal may turn in one step
-  double max_step_edges = 0.25;   // a step is at most this fraction of the vertex's shortest edge
+  double max_step_edges = 0.5;    // a step is at most this fraction of the vertex's shortest edge
+  // Weight of the pull towards the vertex's position before the step, relative to its samples' weight (the
+  // diagonal of the least-squares system).
+  double regularisation = 0.1;
 };
 
 // The input surface the fit measures against: every valid face of `input` as the triangles the output and

@@ -59,6 +59,24 @@ TEST(PolychordCorpus, SurfaceFitBringsACharacterCloser) {
   EXPECT_LT(fitted, 0.9 * unfitted) << "fitted " << fitted << ", unfitted " << unfitted;
 }
 
+// On coarse subdivision cages a collapse moves a vertex across much of the shape: the least-squares fit (every
+// moved vertex free in 3D, edge midpoints and input vertices as samples) brings their quarter LODs at least a
+// quarter closer. Measured: spot 0.72, blub 0.61, penguin 0.70 of the unfitted mean distance; the
+// normal-direction step it replaced reached 0.86, 0.82 and 0.88.
+TEST(PolychordCorpus, SurfaceFitBringsCoarseCagesCloser) {
+  for (const char* relative :
+       {"quad/spot_control_mesh.obj", "quad/blub_control_mesh.obj", "quad/penguin_control_mesh.obj"}) {
+    SCOPED_TRACE(relative);
+    LODFORGE_REQUIRE_CORPUS(path, relative);
+    const Mesh mesh = io::load_asset(path).meshes.at(0);
+    PolychordOptions options{.target_ratio = 0.25};
+    const double fitted = evaluate(mesh, simplify_polychord(mesh, options).mesh).mean;
+    options.fit_surface = false;
+    const double unfitted = evaluate(mesh, simplify_polychord(mesh, options).mesh).mean;
+    EXPECT_LT(fitted, 0.75 * unfitted) << "fitted " << fitted << ", unfitted " << unfitted;
+  }
+}
+
 TEST(PolychordCorpus, SpotStaysQuadDominantAndClose) {
   expect_quad_lods_meet_targets("quad/spot_quadrangulated.obj");
 }
