@@ -302,8 +302,7 @@ void Engine::setup_attributes() {
       if (std::isfinite(ua)) uv_area[set] += ua;
     }
   }
-  const double length_unit =
-      triangles.empty() ? 0.0 : std::sqrt(2.0 * area / static_cast<double>(triangles.size()));
+  const double length_unit = attribute_length_unit(area, triangles.size());
   layout_ = attribute_layout({.normals = normals,
                               .uv_area = uv_area,
                               .color_sets = color_sets,

@@ -834,7 +834,7 @@ void CollapseMesh::setup_attributes(Parallel& parallel) {
       if (std::isfinite(ua)) uv_area[set] += ua;
     }
   }
-  const double length_unit = nf > 0 ? std::sqrt(2.0 * area / static_cast<double>(nf)) : 0.0;
+  const double length_unit = attribute_length_unit(area, nf);
   skin_cost_scale_ = skin_.empty() ? 0.0 : aw.skin * length_unit * length_unit;
 
   std::vector<std::uint8_t> color_sets;

@@ -102,6 +102,12 @@ struct AttributeLayoutInput {
 };
 AttributeLayout attribute_layout(const AttributeLayoutInput& in);
 
+// AttributeLayoutInput::length_unit of a surface of `area` made of `triangles` triangles: sqrt(2 × mean
+// triangle area), about one mean edge length (0 without triangles). Both engines weigh attributes by it.
+inline double attribute_length_unit(double area, std::size_t triangles) {
+  return triangles > 0 ? std::sqrt(2.0 * area / static_cast<double>(triangles)) : 0.0;
+}
+
 // Unsigned area of the UV triangle (a, b, c) in double precision (what AttributeLayoutInput::uv_area sums).
 inline double uv_triangle_area(const Vec2f& a, const Vec2f& b, const Vec2f& c) {
   return 0.5 * std::abs((double{b[0]} - a[0]) * (double{c[1]} - a[1]) - (double{c[0]} - a[0]) * (double{b[1]} - a[1]));
