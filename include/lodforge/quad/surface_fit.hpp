@@ -23,10 +23,14 @@
 namespace lodforge::quad {
 
 struct SurfaceFitOptions {
-  // At most this many steps; fewer when converged (surface_fit.cpp). On the bench's coarse LODs (subdivision
-  // cages, Suzanne, MakeHuman proxy at 10-50%) four steps of at most half an edge came 2-9% closer than two of
-  // a quarter; the 100k-quad torus stops after two (the second moves nothing noticeably).
-  int iterations = 4;
+  // At most this many steps; fewer when converged (surface_fit.cpp). Each step moves the closest points the
+  // next one fits to, so the fit converges slowly, as ICP does: on nine quad corpus meshes at 50/25/10% (the
+  // cages, Suzanne, MakeHuman proxy, suit and hair, fandisk, mixedFaring) four steps of at most half an edge
+  // came up to 11% closer than two of a quarter, eight up to 12% closer than four, sixteen up to 12% closer
+  // than eight. Eight took the polychord engine 1.2-1.7 times as long as four on the bench's quad meshes
+  // (single runs; MakeHuman hm08 at 50%: 0.59 s against 0.46 s); the 100k-quad torus stops after two steps
+  // either way.
+  int iterations = 8;
   double max_turn_deg = 20.0;     // most a face normal may turn in one step
   double max_step_edges = 0.5;    // a step is at most this fraction of the vertex's shortest edge
   // Weight of the pull towards the vertex's position before the step, relative to its samples' weight (the
