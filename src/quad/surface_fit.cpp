@@ -221,7 +221,7 @@ std::size_t refit_to_surface(QuadMesh& mesh, const Mesh& input, const TriangleBv
   // Buffers kept across steps (large ones freed and allocated again cost page faults every step).
   std::vector<std::array<std::uint32_t, 3>> triangles;  // the simplified surface now, as vertex triples
   std::vector<double> triangle_area;
-  std::vector<Vec3d> positions(nv);
+  std::vector<Vec3d> positions(nv), start(n);  // start: the moved vertices' positions before the step
   std::vector<std::uint32_t> indices;
   std::vector<SampledEdge> edges;
   // The last step's answers: the edges and triangles keep their numbers from step to step (unless a quad's
@@ -311,7 +311,6 @@ std::size_t refit_to_surface(QuadMesh& mesh, const Mesh& input, const TriangleBv
                         : Observation{};
       }
     });
-    std::vector<Vec3d> start(n);
     for (std::size_t k = 0; k < n; ++k) start[k] = positions[order[k]];
     const std::vector<Vec3d> solution = system.solve(observations, start, options.regularisation);
 
