@@ -18,6 +18,7 @@
 #include "lodforge/metric/attribute_quadric.hpp"
 #include "lodforge/metric/quadric.hpp"
 #include "lodforge/metric/skin.hpp"
+#include "lodforge/metric/stop_rule.hpp"
 #include "lodforge/quad/polychord.hpp"
 #include "lodforge/quad/quad_mesh.hpp"
 #include "lodforge/quad/quad_recovery.hpp"
@@ -105,8 +106,8 @@ struct IslandPlan {
 
 class Engine {
  public:
-  Engine(const Mesh& mesh, const PolychordOptions& options, std::size_t target)
-      : mesh_(mesh), options_(options), target_(target), qm_(mesh) {
+  Engine(const Mesh& mesh, const PolychordOptions& options, const StopRule& stop)
+      : mesh_(mesh), options_(options), stop_(stop), target_(stop.target_triangles), qm_(mesh) {
     for (std::uint32_t v : options.locked_vertices) qm_.lock(v);
     if (mesh.priority.size() == mesh.vertex_count()) {
       for (std::uint32_t v = 0; v < mesh.vertex_count(); ++v) {
@@ -178,7 +179,8 @@ class Engine {
 
   const Mesh& mesh_;
   const PolychordOptions& options_;
-  std::size_t target_;
+  const StopRule stop_;  // the triangle engines' stop rule: target count and error budget
+  std::size_t target_;   // stop_.target_triangles
   QuadMesh qm_;
   WeldOptions weld_options_;
   long long slack_ = 2;
@@ -208,7 +210,7 @@ class Engine {
   std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> held_;
   double held_top();
   double error_bound_ = 0;
-  std::size_t collapses_ = 0, rejected_ = 0;
+  std::size_t collapses_ = 0, rejected_ = 0, over_budget_ = 0;
   struct Scratch {
     std::vector<double> cost, prefix;
     std::vector<std::uint8_t> usable, in_run;
@@ -757,7 +759,10 @@ void Engine::try_diagonal() {
   IslandPlan plan;
   plan.islands = {{qm_.face_vertex(e.face, e.diagonal), qm_.face_vertex(e.face, e.diagonal + 2)}};
   place(plan.islands[0], plan);
-  if (options_.max_error_abs >= 0.0 && plan.max_error > options_.max_error_abs) return;
+  if (!stop_.allows(plan.max_error)) {
+    ++over_budget_;
+    return;
+  }
   if (!skin_allows(plan.islands)) return;
   WeldOptions dissolve = weld_options_;
   dissolve.dissolve_diagonal_quads = true;
@@ -915,8 +920,7 @@ PolychordResult Engine::collapse() {
     }
   }
 
-  const double budget = options_.max_error_abs;
-  while (qm_.triangle_count() > target_) {
+  while (!stop_.reached(qm_.triangle_count())) {
     // While the hard triangle budget forces runs much dearer than those it holds back (PolychordOptions::
     // diagonal_gate), a diagonal collapse that ranks better than the best run goes first. Diagonals are
     // scored from the first time the gate opens (most meshes never open it).
@@ -974,7 +978,10 @@ PolychordResult Engine::collapse() {
     }
     const Candidate candidate = chord.best;
     const IslandPlan islands = plan(chord, candidate);
-    if (budget >= 0.0 && islands.max_error > budget) continue;  // stays out until its neighbourhood changes
+    if (!stop_.allows(islands.max_error)) {  // stays out until its neighbourhood changes
+      ++over_budget_;
+      continue;
+    }
     WeldResult w;
     if (skin_allows(islands.islands)) {
       w = qm_.weld(islands.islands, islands.positions, weld_options_);
@@ -999,10 +1006,11 @@ PolychordResult Engine::collapse() {
 
   result.triangles_after = qm_.triangle_count();
   result.quads_after = qm_.face_kinds().quads;
-  result.target_reached = result.triangles_after <= target_;
+  result.target_reached = stop_.reached(result.triangles_after);
   result.error_bound_abs = error_bound_;
   result.collapses = collapses_;
   result.rejected = rejected_;
+  result.over_budget = over_budget_;
   result.diagonal_collapses = diagonal_collapses_;
   return result;
 }
@@ -1052,11 +1060,12 @@ PolychordResult simplify_polychord(const Mesh& mesh, const PolychordOptions& opt
   if (recover) recovered = recover_quads(mesh, {}, &made);
   const Mesh& input = recover ? recovered : mesh;
   const std::size_t input_triangles = mesh.triangle_count();
-  const std::size_t target = options.target_triangles != 0
-                                 ? options.target_triangles
-                                 : static_cast<std::size_t>(std::llround(options.target_ratio *
-                                                                         static_cast<double>(input_triangles)));
-  Engine engine(input, options, target);
+  const StopRule stop = StopRule::make(input_triangles,
+                                      {.target_ratio = options.target_ratio,
+                                       .target_triangles = options.target_triangles,
+                                       .max_error_abs = options.max_error_abs},
+                                      0.0);
+  Engine engine(input, options, stop);
   PolychordResult r = engine.run();
   r.recovered_quads = made;
   // Triangles left by neighbouring runs often pair up into quads without moving anything (quad_recovery.hpp:

@@ -293,17 +293,69 @@ long long QuadMesh::local_euler_edges(const std::vector<std::uint32_t>& faces) c
   return static_cast<long long>(std::unique(keys.begin(), keys.end()) - keys.begin());
 }
 
+// What one weld has worked out so far, passed from step to step.
+struct QuadMesh::WeldPlan {
+  const std::vector<std::vector<std::uint32_t>>& islands;
+  std::vector<Vec3d> targets;               // where each island's survivor goes
+  std::vector<std::uint32_t> survivors;     // one per island
+  std::vector<std::uint32_t> assigned;      // island_of_ entries to reset
+  std::vector<std::uint32_t> affected;      // faces with an island vertex, ascending
+  std::vector<std::uint32_t> wedges_used;   // wedge_parent_ entries to reset
+  // (class root, vertex, wedge) of every wedge of an island vertex, sorted: a class may hold one wedge per
+  // vertex.
+  std::vector<std::tuple<std::uint32_t, std::uint32_t, std::uint32_t>> members;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> class_rep;  // (root, representative wedge)
+  // Affected face k's new corners are new_corners[new_begin[k], new_begin[k + 1]) as (vertex, wedge).
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> new_corners;
+  std::vector<std::uint32_t> new_begin;
+  std::vector<std::uint32_t> touched;        // every vertex of an affected face, ascending
+  std::vector<std::uint32_t> alive_touched;  // those still alive after the weld
+  std::vector<std::uint64_t> outside_edges;  // edges of affected faces between two vertices outside the islands
+};
+
 WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands,
                           const std::vector<Vec3d>& island_positions, const WeldOptions& options) {
   WeldResult result;
-  const std::size_t nv = positions_.size();
-  std::vector<std::uint32_t> assigned;  // island_of_ entries to reset
-  auto reset_scratch = [&] {
-    for (std::uint32_t v : assigned) island_of_[v] = kInvalidIndex;
-  };
+  WeldPlan plan{.islands = islands, .targets = island_positions};
+  result.failure = weld_pick_survivors(plan);
+  if (result.ok()) result.failure = weld_wedge_classes(plan, options);
+  if (result.ok()) result.failure = weld_corner_lists(plan, options);
+  if (!result.ok()) {
+    weld_release(plan);
+    return result;
+  }
+  Undo undo;
+  weld_undo_log(plan, undo);
+  weld_apply(plan, undo);
+  result.failure = weld_validate(plan, undo, options);
+  if (result.ok() && !options.dry_run) {
+    result.wedges.reserve(plan.members.size());
+    for (const auto& [root, v, w] : plan.members) {
+      result.wedges.push_back({w, weld_wedge_target(plan, w), plan.survivors[island_of_[v]]});
+    }
+  }
+  weld_release(plan);
+  if (!result.ok() || options.dry_run) {
+    rollback(undo);
+    return result;
+  }
+  refresh_across(plan.touched);
+  result.survivors = std::move(plan.survivors);
+  result.faces = std::move(plan.affected);
+  result.triangles_removed = static_cast<long long>(undo.triangles) - static_cast<long long>(triangles_);
+  return result;
+}
 
-  // 1. Islands: disjoint, alive, at most one locked vertex each; pick survivors.
-  bool bad = islands.size() != island_positions.size();
+void QuadMesh::weld_release(const WeldPlan& plan) {
+  for (std::uint32_t v : plan.assigned) island_of_[v] = kInvalidIndex;
+  for (std::uint32_t w : plan.wedges_used) wedge_parent_[w] = kInvalidIndex;
+}
+
+// Weld step 1. Islands: disjoint, alive, at most one locked vertex each; the faces they touch; survivors.
+WeldFailure QuadMesh::weld_pick_survivors(WeldPlan& plan) {
+  const std::vector<std::vector<std::uint32_t>>& islands = plan.islands;
+  const std::size_t nv = positions_.size();
+  bool bad = islands.size() != plan.targets.size();
   for (std::uint32_t k = 0; k < islands.size() && !bad; ++k) {
     if (islands[k].size() < 2) bad = true;
     for (std::uint32_t v : islands[k]) {
@@ -312,15 +364,11 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
         break;
       }
       island_of_[v] = k;
-      assigned.push_back(v);
+      plan.assigned.push_back(v);
     }
   }
-  if (bad) {
-    reset_scratch();
-    result.failure = WeldFailure::bad_island;
-    return result;
-  }
-  std::vector<std::uint32_t> affected;
+  if (bad) return WeldFailure::bad_island;
+  std::vector<std::uint32_t>& affected = plan.affected;
   for (const auto& island : islands) {
     for (std::uint32_t v : island) affected.insert(affected.end(), vertex_faces_[v].begin(), vertex_faces_[v].end());
   }
@@ -338,8 +386,6 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
     }
     return count;
   };
-  std::vector<std::uint32_t>& survivors = result.survivors;
-  std::vector<Vec3d> targets = island_positions;
   for (std::uint32_t k = 0; k < islands.size(); ++k) {
     std::uint32_t best = kInvalidIndex, locked_count = 0;
     std::size_t best_wedges = 0;
@@ -347,7 +393,7 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
       if (locked_[v]) {
         ++locked_count;
         best = v;
-        targets[k] = positions_[v];
+        plan.targets[k] = positions_[v];
         best_wedges = static_cast<std::size_t>(-1);
         continue;
       }
@@ -357,23 +403,22 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
         best_wedges = w;
       }
     }
-    if (locked_count > 1) {
-      reset_scratch();
-      result.failure = WeldFailure::locked;
-      return result;
-    }
-    survivors.push_back(best);
+    if (locked_count > 1) return WeldFailure::locked;
+    plan.survivors.push_back(best);
   }
+  return WeldFailure::none;
+}
 
-  // 2. Wedge classes: wedges meeting across a side whose ends share an island merge.
-  std::vector<std::uint32_t> wedges_used;  // wedge_parent_ entries to reset
+// Weld step 2. Wedge classes: wedges meeting across a side whose ends share an island merge; a class with two
+// wedges of one vertex would merge two sides of a seam.
+WeldFailure QuadMesh::weld_wedge_classes(WeldPlan& plan, const WeldOptions& options) {
   auto touch_wedge = [&](std::uint32_t w) {
     if (wedge_parent_[w] == kInvalidIndex) {
       wedge_parent_[w] = w;
-      wedges_used.push_back(w);
+      plan.wedges_used.push_back(w);
     }
   };
-  for (std::uint32_t f : affected) {
+  for (std::uint32_t f : plan.affected) {
     const std::uint32_t n = face_size_[f];
     for (std::uint32_t i = 0; i < n; ++i) {
       const std::uint32_t a = face_vertex(f, i);
@@ -392,9 +437,8 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
       if (n == 4 && options.dissolve_diagonal_quads) join((i + 2) % n);
     }
   }
-  // (class root, vertex, wedge): a class may hold one wedge per vertex.
-  std::vector<std::tuple<std::uint32_t, std::uint32_t, std::uint32_t>> members;
-  for (std::uint32_t w : wedges_used) members.emplace_back(find_root(wedge_parent_, w), wedge_vertex_[w], w);
+  auto& members = plan.members;
+  for (std::uint32_t w : plan.wedges_used) members.emplace_back(find_root(wedge_parent_, w), wedge_vertex_[w], w);
   std::sort(members.begin(), members.end());
   bool seam = false;
   for (std::size_t i = 1; i < members.size(); ++i) {
@@ -403,30 +447,26 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
     }
   }
   // Class representative: the survivor's wedge, else the lowest id (the root).
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> class_rep;  // (root, wedge)
   for (const auto& [root, v, w] : members) {
     const std::uint32_t k = island_of_[v];
-    if (k != kInvalidIndex && survivors[k] == v) class_rep.emplace_back(root, w);
+    if (k != kInvalidIndex && plan.survivors[k] == v) plan.class_rep.emplace_back(root, w);
   }
-  auto wedge_target = [&](std::uint32_t w) {
-    const std::uint32_t root = find_root(wedge_parent_, w);
-    const auto it = std::lower_bound(class_rep.begin(), class_rep.end(), std::make_pair(root, std::uint32_t{0}));
-    return it != class_rep.end() && it->first == root ? it->second : root;
-  };
-  auto reset_all = [&] {
-    reset_scratch();
-    for (std::uint32_t w : wedges_used) wedge_parent_[w] = kInvalidIndex;
-  };
-  if (seam) {
-    reset_all();
-    result.failure = WeldFailure::seam;
-    return result;
-  }
+  return seam ? WeldFailure::seam : WeldFailure::none;
+}
 
-  // 3. New corner lists, before anything is written (a folded polygon refuses the whole weld).
-  // Face k's new corners are new_corners[new_begin[k], new_begin[k + 1]) as (vertex, wedge).
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> new_corners;
-  std::vector<std::uint32_t> new_begin(affected.size() + 1, 0);
+std::uint32_t QuadMesh::weld_wedge_target(const WeldPlan& plan, std::uint32_t w) {
+  const std::uint32_t root = find_root(wedge_parent_, w);
+  const auto it =
+      std::lower_bound(plan.class_rep.begin(), plan.class_rep.end(), std::make_pair(root, std::uint32_t{0}));
+  return it != plan.class_rep.end() && it->first == root ? it->second : root;
+}
+
+// Weld step 3. New corner lists, before anything is written (a folded polygon refuses the whole weld).
+WeldFailure QuadMesh::weld_corner_lists(WeldPlan& plan, const WeldOptions& options) {
+  auto& new_corners = plan.new_corners;
+  auto& new_begin = plan.new_begin;
+  const std::vector<std::uint32_t>& affected = plan.affected;
+  new_begin.assign(affected.size() + 1, 0);
   for (std::size_t k = 0; k < affected.size(); ++k) {
     const std::uint32_t f = affected[k], n = face_size_[f];
     const std::size_t begin = new_corners.size();
@@ -444,8 +484,8 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
     for (std::uint32_t i = 0; i < n; ++i) {
       std::uint32_t v = face_vertex(f, i), w = face_wedge(f, i);
       if (island_of_[v] != kInvalidIndex) {
-        v = survivors[island_of_[v]];
-        w = wedge_target(w);
+        v = plan.survivors[island_of_[v]];
+        w = weld_wedge_target(plan, w);
       }
       if (new_corners.size() == begin || new_corners.back().first != v) new_corners.emplace_back(v, w);
     }
@@ -462,21 +502,20 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
                                                                          new_corners.size() - begin);
     for (std::size_t i = 0; i < poly.size(); ++i) {
       for (std::size_t j = i + 1; j < poly.size(); ++j) {
-        if (poly[i].first == poly[j].first) {
-          reset_all();
-          result.failure = WeldFailure::folded_polygon;
-          return result;
-        }
+        if (poly[i].first == poly[j].first) return WeldFailure::folded_polygon;
       }
     }
   }
+  return WeldFailure::none;
+}
 
-  // 4. Undo log.
-  Undo undo;
+// Weld step 4. The undo log: everything step 5 overwrites.
+void QuadMesh::weld_undo_log(WeldPlan& plan, Undo& undo) const {
+  const std::vector<std::uint32_t>& affected = plan.affected;
   undo.triangles = triangles_;
   undo.triangle_faces = triangle_faces_;
   undo.edges_before = local_euler_edges(affected);
-  std::vector<std::uint32_t> touched;  // every vertex of an affected face
+  std::vector<std::uint32_t>& touched = plan.touched;
   undo.faces.reserve(affected.size());
   for (std::uint32_t f : affected) {
     undo.faces.push_back({f, face_size_[f], static_cast<std::uint32_t>(undo.corner_vertices.size())});
@@ -497,21 +536,23 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
     undo.vertex_faces.insert(undo.vertex_faces.end(), vertex_faces_[v].begin(), vertex_faces_[v].end());
   }
   // Old edges between two vertices outside the islands may survive in faces the weld does not touch.
-  std::vector<std::uint64_t> outside_edges;
   for (std::uint32_t f : affected) {
     const std::uint32_t n = face_size_[f];
     for (std::uint32_t i = 0; i < n; ++i) {
       const std::uint32_t a = face_vertex(f, i), b = face_vertex(f, (i + 1) % n);
-      if (island_of_[a] == kInvalidIndex && island_of_[b] == kInvalidIndex) outside_edges.push_back(edge_key(a, b));
+      if (island_of_[a] == kInvalidIndex && island_of_[b] == kInvalidIndex) plan.outside_edges.push_back(edge_key(a, b));
     }
   }
+}
 
-  // 5. Apply.
+// Weld step 5. Apply: new corners, dead island vertices, moved survivors, wedges renamed, face lists.
+void QuadMesh::weld_apply(WeldPlan& plan, Undo& undo) {
+  const std::vector<std::uint32_t>& affected = plan.affected;
   for (std::size_t k = 0; k < affected.size(); ++k) {
     const std::uint32_t f = affected[k];
     triangles_ -= face_size_[f] - 2;
     if (face_size_[f] == 3) --triangle_faces_;
-    face_size_[f] = new_begin[k + 1] - new_begin[k];
+    face_size_[f] = plan.new_begin[k + 1] - plan.new_begin[k];
     if (face_size_[f] == 0) {
       ++undo.killed_faces;
       continue;
@@ -519,32 +560,32 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
     triangles_ += face_size_[f] - 2;
     if (face_size_[f] == 3) ++triangle_faces_;
     for (std::uint32_t i = 0; i < face_size_[f]; ++i) {
-      corner_vertex_[face_begin_[f] + i] = new_corners[new_begin[k] + i].first;
-      corner_wedge_[face_begin_[f] + i] = new_corners[new_begin[k] + i].second;
+      corner_vertex_[face_begin_[f] + i] = plan.new_corners[plan.new_begin[k] + i].first;
+      corner_wedge_[face_begin_[f] + i] = plan.new_corners[plan.new_begin[k] + i].second;
     }
   }
-  for (std::uint32_t k = 0; k < islands.size(); ++k) {
-    for (std::uint32_t v : islands[k]) {
-      if (v == survivors[k]) continue;
+  for (std::uint32_t k = 0; k < plan.islands.size(); ++k) {
+    for (std::uint32_t v : plan.islands[k]) {
+      if (v == plan.survivors[k]) continue;
       vertex_dead_[v] = 1;
       ++undo.removed_vertices;
     }
-    const std::uint32_t s = survivors[k];
+    const std::uint32_t s = plan.survivors[k];
     if (!locked_[s]) {
-      positions_[s] = targets[k];
+      positions_[s] = plan.targets[k];
       moved_[s] = 1;
     }
   }
-  for (const auto& [root, v, w] : members) {
+  for (const auto& [root, v, w] : plan.members) {
     const std::uint32_t k = island_of_[v];
-    if (v != survivors[k]) {
+    if (v != plan.survivors[k]) {
       undo.wedge_vertex.emplace_back(w, wedge_vertex_[w]);
-      wedge_vertex_[w] = survivors[k];
+      wedge_vertex_[w] = plan.survivors[k];
     }
   }
   // Survivors get the alive affected faces they are a corner of (every face of an island vertex is affected;
   // `affected` is ascending, so the lists stay sorted); other vertices lose their dead faces.
-  for (std::uint32_t v : touched) {
+  for (std::uint32_t v : plan.touched) {
     std::vector<std::uint32_t>& list = vertex_faces_[v];
     if (vertex_dead_[v] || island_of_[v] != kInvalidIndex) {
       list.clear();
@@ -561,57 +602,43 @@ WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands
 
   // A vertex whose faces all vanished (the far corner of a strip's last quad when the run covers it, the apex
   // of a deleted end triangle) leaves the mesh with them.
-  std::vector<std::uint32_t> alive_touched;
-  for (std::uint32_t v : touched) {
+  for (std::uint32_t v : plan.touched) {
     if (vertex_dead_[v]) continue;
     if (vertex_faces_[v].empty()) {
       vertex_dead_[v] = 1;
       ++undo.removed_vertices;
     } else {
-      alive_touched.push_back(v);
+      plan.alive_touched.push_back(v);
     }
   }
+}
 
-  // 6. Validate; roll back on failure.
-  result.failure = check_after_weld(affected, alive_touched, undo, options);
-  if (result.ok()) {
-    // Euler characteristic: V - E + F must not change (edges counted locally; see header).
-    std::vector<std::uint64_t> keys;
-    for (std::uint32_t f : affected) {
-      const std::uint32_t n = face_size_[f];
-      for (std::uint32_t i = 0; i < n; ++i) keys.push_back(edge_key(face_vertex(f, i), face_vertex(f, (i + 1) % n)));
-    }
-    for (std::uint64_t e : outside_edges) {
-      const std::uint32_t a = static_cast<std::uint32_t>(e >> 32), b = static_cast<std::uint32_t>(e & 0xffffffffu);
-      for (std::uint32_t g : vertex_faces_[a]) {
-        if (corner_of(g, b) != kInvalidIndex) {
-          const std::uint32_t m = face_size_[g], i = corner_of(g, a);
-          if (face_vertex(g, (i + 1) % m) == b || face_vertex(g, (i + m - 1) % m) == b) {
-            keys.push_back(e);
-            break;
-          }
+// Weld step 6. Validate the welded neighbourhood (check_after_weld) and its Euler characteristic.
+WeldFailure QuadMesh::weld_validate(const WeldPlan& plan, const Undo& undo, const WeldOptions& options) const {
+  const WeldFailure failure = check_after_weld(plan.affected, plan.alive_touched, undo, options);
+  if (failure != WeldFailure::none) return failure;
+  // Euler characteristic: V - E + F must not change (edges counted locally; see header).
+  std::vector<std::uint64_t> keys;
+  for (std::uint32_t f : plan.affected) {
+    const std::uint32_t n = face_size_[f];
+    for (std::uint32_t i = 0; i < n; ++i) keys.push_back(edge_key(face_vertex(f, i), face_vertex(f, (i + 1) % n)));
+  }
+  for (std::uint64_t e : plan.outside_edges) {
+    const std::uint32_t a = static_cast<std::uint32_t>(e >> 32), b = static_cast<std::uint32_t>(e & 0xffffffffu);
+    for (std::uint32_t g : vertex_faces_[a]) {
+      if (corner_of(g, b) != kInvalidIndex) {
+        const std::uint32_t m = face_size_[g], i = corner_of(g, a);
+        if (face_vertex(g, (i + 1) % m) == b || face_vertex(g, (i + m - 1) % m) == b) {
+          keys.push_back(e);
+          break;
         }
       }
     }
-    std::sort(keys.begin(), keys.end());
-    const long long edges_after = static_cast<long long>(std::unique(keys.begin(), keys.end()) - keys.begin());
-    const long long delta_euler = -undo.removed_vertices - (edges_after - undo.edges_before) - undo.killed_faces;
-    if (delta_euler != 0) result.failure = WeldFailure::euler;
   }
-  if (result.ok() && !options.dry_run) {
-    result.wedges.reserve(members.size());
-    for (const auto& [root, v, w] : members) result.wedges.push_back({w, wedge_target(w), survivors[island_of_[v]]});
-  }
-  reset_all();
-  if (!result.ok() || options.dry_run) {
-    rollback(undo);
-    result.survivors.clear();
-    return result;
-  }
-  refresh_across(touched);
-  result.faces = affected;
-  result.triangles_removed = static_cast<long long>(undo.triangles) - static_cast<long long>(triangles_);
-  return result;
+  std::sort(keys.begin(), keys.end());
+  const long long edges_after = static_cast<long long>(std::unique(keys.begin(), keys.end()) - keys.begin());
+  const long long delta_euler = -undo.removed_vertices - (edges_after - undo.edges_before) - undo.killed_faces;
+  return delta_euler != 0 ? WeldFailure::euler : WeldFailure::none;
 }
 
 WeldFailure QuadMesh::check_after_weld(const std::vector<std::uint32_t>& faces,

@@ -17,7 +17,7 @@
 #include <cmath>
 #include <vector>
 
-#include "lodforge/simplify/edge_collapse.hpp"
+#include "engines.hpp"
 
 namespace lodforge::collapse {
 namespace {
@@ -42,13 +42,9 @@ std::uint64_t sample_bits(std::uint64_t seed, std::uint64_t round, std::uint64_t
   return splitmix64(splitmix64(splitmix64(seed) ^ round) ^ ((step << 16) | sample));
 }
 
-double elapsed_ms(std::chrono::steady_clock::time_point since) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - since).count();
-}
-
 struct Winner {
   bool found = false;
-  std::uint32_t refused = 0;  // samples that failed check()
+  VetoCounts vetoes;         // samples that failed check(), and those over the error budget
   bool over_budget = false;  // some sample was valid-looking but over the error budget
   std::uint32_t u = 0, v = 0;
   Evaluation eval;
@@ -63,13 +59,15 @@ struct Sample {
 
 }  // namespace
 
-SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions& options) {
+SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions& options,
+                                   const CollapsePolicies& policies) {
   SimplifyResult result;
   auto t0 = std::chrono::steady_clock::now();
   Parallel parallel(options.threads);
-  CollapseMesh cm(triangles, options, parallel);
-  const std::size_t target = target_triangle_count(options, triangles.triangle_count());
-  const double budget2 = normalised_budget_squared(options, cm.scale(), cm.diagonal());
+  CollapseMesh cm(triangles, options, parallel, policies.any() ? &policies : nullptr);
+  const StopRule stop = stop_rule(options, triangles.triangle_count(), cm.diagonal());
+  const std::size_t target = stop.target_triangles;
+  const double budget2 = normalised_budget_squared(stop, cm.scale());
   const auto k = static_cast<std::size_t>(options.multiple_choice_k);
   result.timings.setup_ms = elapsed_ms(t0);
 
@@ -93,7 +91,13 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
   int failed_rounds = 0;
   bool over_budget = false;
 
-  for (std::uint64_t round = 0; cm.alive_faces() > target; ++round) {
+  auto policy_stop = [&] {
+    return policies.stop && policies.stop({.triangles = cm.alive_faces(),
+                                           .collapses = result.collapses,
+                                           .rounds = result.rounds,
+                                           .max_error = cm.model_error(max_error)});
+  };
+  for (std::uint64_t round = 0; !stop.reached(cm.alive_faces()) && !policy_stop(); ++round) {
     if (faces.size() > 2 * cm.alive_faces() + 64) rebuild_faces();
     const std::size_t remaining = cm.alive_faces() - target;
     const std::size_t steps =
@@ -116,6 +120,7 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
           const Evaluation ev = cm.evaluate(u, v);
           if (ev.error > budget2) {
             w.over_budget = true;
+            ++w.vetoes[Veto::error_budget];
             continue;
           }
           samples.push_back({ev.cost, u, v, ev});
@@ -126,7 +131,7 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
         // Cheapest valid sample wins (duplicates of a refused edge are refused again, cheaply enough).
         for (const Sample& smp : samples) {
           const Check c = cm.check(smp.u, smp.v, smp.eval.position, s);
-          if (!c.ok()) ++w.refused;
+          if (!c.ok()) ++w.vetoes[c.veto];
           if (c.ok()) {
             w.found = true;
             w.u = smp.u;
@@ -144,7 +149,7 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
     bool round_over_budget = false;
     for (std::uint32_t g = 0; g < steps; ++g) {
       if (winners[g].found) order.push_back(g);
-      result.rejected += winners[g].refused;
+      result.vetoes += winners[g].vetoes;
       round_over_budget = round_over_budget || winners[g].over_budget;
     }
     std::sort(order.begin(), order.end(), [&](std::uint32_t x, std::uint32_t y) {
@@ -158,7 +163,7 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
     ++stamp;
     std::size_t committed = 0;
     for (std::uint32_t g : order) {
-      if (cm.alive_faces() <= target) break;
+      if (stop.reached(cm.alive_faces())) break;
       const Winner& w = winners[g];
       bool conflict = false;
       cm.for_each_closed_ring_vertex(w.u, w.v, [&](std::uint32_t x) { conflict = conflict || mark[x] == stamp; });
@@ -167,6 +172,13 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
       cm.commit(w.check, w.eval.position, main_scratch);
       max_error = std::max(max_error, w.eval.error);
       ++result.collapses;
+      if (policies.on_collapse) {
+        policies.on_collapse({.victim = w.check.victim,
+                              .survivor = w.check.survivor,
+                              .position = cm.model_position(w.eval.position),
+                              .error = cm.model_error(w.eval.error),
+                              .triangles = cm.alive_faces()});
+      }
       ++committed;
     }
     if (committed == 0) {
@@ -178,7 +190,7 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
   }
   result.timings.collapse_ms = elapsed_ms(t0);
 
-  finish_result(cm, max_error, target, over_budget, result);
+  finish_result(cm, max_error, stop, over_budget, result);
   return result;
 }
 

@@ -11,9 +11,9 @@
 #include <string>
 #include <utility>
 
+#include "engines.hpp"
 #include "lodforge/quad/polychord_collapse.hpp"
 #include "lodforge/quad/quad_recovery.hpp"
-#include "lodforge/simplify/edge_collapse.hpp"
 
 namespace lodforge {
 
@@ -92,23 +92,39 @@ const char* stop_reason_name(StopReason r) {
   return "unknown";
 }
 
+const char* veto_name(Veto v) {
+  switch (v) {
+    case Veto::none: return "none";
+    case Veto::not_an_edge: return "not_an_edge";
+    case Veto::link_condition: return "link_condition";
+    case Veto::boundary_pinch: return "boundary_pinch";
+    case Veto::dangling_face: return "dangling_face";
+    case Veto::tetrahedron: return "tetrahedron";
+    case Veto::fold: return "fold";
+    case Veto::degenerate: return "degenerate";
+    case Veto::seam: return "seam";
+    case Veto::uv_flip: return "uv_flip";
+    case Veto::skin: return "skin";
+    case Veto::weld: return "weld";
+    case Veto::filter: return "filter";
+    case Veto::error_budget: return "error_budget";
+  }
+  return "unknown";
+}
+
 namespace {
 
 // Engine::polychord: quad-preserving sub-polychord collapse (quad part) on the polygon mesh as it is; when it
 // stops before the target, the triangle engine takes its output the rest of the way (that output is then
 // triangles, with the pairs that split back into the same two triangles as quads: a LOD chain is quads for its
 // first LODs and triangles after), or the input itself where the quad engine made under half the reduction.
-SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options) {
+SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options, const CollapsePolicies& policies) {
   const auto t0 = std::chrono::steady_clock::now();
-  const std::size_t target = collapse::target_triangle_count(options, mesh.triangle_count());
-  double budget = options.max_error_abs;
-  if (options.max_error_rel >= 0.0) {
-    const double rel = options.max_error_rel * compute_bounds(mesh).diagonal();
-    budget = budget >= 0.0 ? std::min(budget, rel) : rel;
-  }
+  const StopRule stop = collapse::stop_rule(options, mesh.triangle_count(), compute_bounds(mesh).diagonal());
+  const std::size_t target = stop.target_triangles;
   quad::PolychordResult q = quad::simplify_polychord(
       mesh, {.target_triangles = std::max<std::size_t>(target, 1),
-             .max_error_abs = budget,
+             .max_error_abs = stop.has_budget() ? stop.max_error : -1.0,
              .border_weight = options.border_mode == BorderMode::free ? 0.0 : options.border_weight,
              .max_flip_angle_deg = options.max_flip_angle_deg,
              .lock_boundary = options.border_mode == BorderMode::lock,
@@ -143,7 +159,7 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options) {
         if (locked_positions.count(q.mesh.positions[v].v)) rest.locked_vertices.push_back(v);
       }
     }
-    r = collapse::run_edge_collapse(triangulated(restart ? mesh : q.mesh), rest);
+    r = collapse::run_edge_collapse(triangulated(restart ? mesh : q.mesh), rest, policies);
     r.quad_engine_handed_over = restart;
     // Triangle pairs that split back into the same two triangles come back as quads (the quads the triangle
     // engine left untouched among them); pairs that would split the other way stay triangles, so the surface
@@ -151,7 +167,8 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options) {
     r.mesh = quad::recover_quads(r.mesh, {.keep_triangles = true});
     if (!restart) {
       r.collapses += q.collapses;
-      r.rejected += q.rejected;
+      r.vetoes[Veto::weld] += q.rejected;
+      r.vetoes[Veto::error_budget] += q.over_budget;
       r.error_bound_abs = std::max(r.error_bound_abs, q.error_bound_abs);
     }
   } else {
@@ -161,7 +178,8 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options) {
     r.triangles_after = q.triangles_after;
     r.error_bound_abs = q.error_bound_abs;
     r.collapses = q.collapses;
-    r.rejected = q.rejected;
+    r.vetoes[Veto::weld] = q.rejected;
+    r.vetoes[Veto::error_budget] = q.over_budget;
     r.stop_reason = StopReason::target_reached;
   }
   const double diagonal = compute_bounds(mesh).diagonal();
@@ -175,7 +193,9 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options) {
 
 }  // namespace
 
-SimplifyResult simplify(const Mesh& mesh, const SimplifyOptions& options) {
+SimplifyResult simplify(const Mesh& mesh, const SimplifyOptions& options) { return simplify(mesh, options, {}); }
+
+SimplifyResult simplify(const Mesh& mesh, const SimplifyOptions& options, const CollapsePolicies& policies) {
   const std::vector<std::string> problems = options.validate();
   if (!problems.empty()) {
     std::string msg = "invalid simplify options:";
@@ -188,14 +208,15 @@ SimplifyResult simplify(const Mesh& mesh, const SimplifyOptions& options) {
   const std::vector<std::uint32_t> repeats = repeated_faces(mesh);
   if (!repeats.empty()) {
     SimplifyOptions rest = options;
-    rest.target_triangles = std::max<std::size_t>(collapse::target_triangle_count(options, mesh.triangle_count()), 1);
-    SimplifyResult r = simplify(without_faces(mesh, repeats), rest);
+    rest.target_triangles = std::max<std::size_t>(
+        collapse::stop_rule(options, mesh.triangle_count(), 0.0).target_triangles, 1);
+    SimplifyResult r = simplify(without_faces(mesh, repeats), rest, policies);
     r.triangles_before = mesh.triangle_count();
     r.quads_before = count_face_kinds(mesh).quads;
     r.repeated_faces_removed = repeats.size();
     return r;
   }
-  if (options.engine == Engine::polychord) return run_polychord(mesh, options);
+  if (options.engine == Engine::polychord) return run_polychord(mesh, options, policies);
   const auto t0 = std::chrono::steady_clock::now();
   const FaceKindCounts kinds = count_face_kinds(mesh);
   const bool all_triangles = kinds.quads == 0 && kinds.polygons == 0;
@@ -205,8 +226,8 @@ SimplifyResult simplify(const Mesh& mesh, const SimplifyOptions& options) {
   const Mesh& tris = all_triangles ? mesh : triangulated_copy;
   const double triangulate_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 
-  SimplifyResult r = options.engine == Engine::multiple_choice ? collapse::run_multiple_choice(tris, options)
-                                                               : collapse::run_edge_collapse(tris, options);
+  SimplifyResult r = options.engine == Engine::multiple_choice ? collapse::run_multiple_choice(tris, options, policies)
+                                                               : collapse::run_edge_collapse(tris, options, policies);
   r.triangles_before = mesh.triangle_count();
   r.quads_before = kinds.quads;
   r.timings.setup_ms += triangulate_ms;

@@ -440,7 +440,7 @@ Geometry run_lodforge(Run& run, const Input& in, const Settings& s, unsigned thr
                  {"error_bound_rel", res.error_bound_rel},
                  {"collapses", res.collapses},
                  {"rounds", res.rounds},
-                 {"rejected", res.rejected},
+                 {"rejected", res.vetoes.rejected()},
                  {"setup_ms", res.timings.setup_ms},
                  {"initial_costs_ms", res.timings.initial_costs_ms},
                  {"collapse_ms", res.timings.collapse_ms},

@@ -118,6 +118,7 @@ struct PolychordResult {
   std::size_t collapses = 0;   // committed runs
   std::size_t diagonal_collapses = 0;  // committed diagonal collapses
   std::size_t rejected = 0;    // runs the weld refused
+  std::size_t over_budget = 0; // runs and diagonal collapses left out for exceeding the error budget
   std::size_t recovered_quads = 0;  // quads made by quad recovery of triangle input
   std::size_t paired_triangles = 0; // quads made at the end from adjacent triangles the runs left (see .cpp)
 };

@@ -134,6 +134,16 @@ class QuadMesh {
 
  private:
   struct Undo;
+  struct WeldPlan;
+  // weld() in six steps; each returns a failure or WeldFailure::none, weld_release() resets the scratch.
+  WeldFailure weld_pick_survivors(WeldPlan& plan);
+  WeldFailure weld_wedge_classes(WeldPlan& plan, const WeldOptions& options);
+  WeldFailure weld_corner_lists(WeldPlan& plan, const WeldOptions& options);
+  void weld_undo_log(WeldPlan& plan, Undo& undo) const;
+  void weld_apply(WeldPlan& plan, Undo& undo);
+  WeldFailure weld_validate(const WeldPlan& plan, const Undo& undo, const WeldOptions& options) const;
+  void weld_release(const WeldPlan& plan);
+  std::uint32_t weld_wedge_target(const WeldPlan& plan, std::uint32_t w);  // a wedge's class representative
   WeldFailure check_after_weld(const std::vector<std::uint32_t>& faces, const std::vector<std::uint32_t>& vertices,
                                const Undo& undo, const WeldOptions& options) const;
   void rollback(const Undo& undo);

@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "lodforge/core/mesh.hpp"
+#include "lodforge/simplify/policies.hpp"
 
 namespace lodforge {
 
@@ -119,6 +120,44 @@ bool is_priority_channel(std::string_view channel);
 enum class StopReason { target_reached, error_budget, no_valid_collapse };
 const char* stop_reason_name(StopReason r);
 
+// Why a candidate collapse was refused. The first ten are the triangle engines' check-time rules
+// (CollapseMesh::check, which draws the local configurations).
+enum class Veto : std::uint8_t {
+  none,
+  not_an_edge,      // the endpoints share no face (stale candidate), or more than two
+  link_condition,   // a common neighbour that is not an apex: the collapse would glue two sheets together
+  boundary_pinch,   // interior edge between two boundary vertices: would pinch the surface to one vertex
+  dangling_face,    // the edge's face has its two other edges on the boundary: would leave a dangling edge
+  tetrahedron,      // both faces c-d-a and c-d-b exist: the collapse would fold a tetrahedron flat
+  fold,             // a face normal would turn by more than max_flip_angle_deg
+  degenerate,       // a face would get (almost) zero area
+  seam,             // wedges cannot be carried over without merging distinct attribute values (or materials)
+  uv_flip,          // a face's UV triangle would turn over (or collapse to zero area) in some UV set
+  skin,             // a face would join vertices with different dominant joints and distant weight vectors
+  weld,             // polychord engine: the weld of a run refused it (topology, fold, seam or skin)
+  filter,           // a caller's filter policy refused it (CollapsePolicies::filter)
+  error_budget,     // its error exceeds the error budget (not a refusal of the topology: counted apart)
+};
+inline constexpr int kVetoKinds = 14;
+const char* veto_name(Veto v);
+
+// How many candidates each rule refused.
+struct VetoCounts {
+  std::size_t count[kVetoKinds] = {};
+  std::size_t& operator[](Veto v) { return count[static_cast<int>(v)]; }
+  std::size_t operator[](Veto v) const { return count[static_cast<int>(v)]; }
+  // Refusals at check time: every rule but the error budget.
+  std::size_t rejected() const {
+    std::size_t n = 0;
+    for (int i = 1; i < kVetoKinds; ++i) n += i == static_cast<int>(Veto::error_budget) ? 0 : count[i];
+    return n;
+  }
+  VetoCounts& operator+=(const VetoCounts& o) {
+    for (int i = 0; i < kVetoKinds; ++i) count[i] += o.count[i];
+    return *this;
+  }
+};
+
 struct SimplifyResult {
   Mesh mesh;
   std::size_t triangles_before = 0;
@@ -134,7 +173,7 @@ struct SimplifyResult {
   } timings;
   std::size_t collapses = 0;
   std::size_t rounds = 0;           // parallel rounds (edge_collapse batches, multiple_choice sample rounds)
-  std::size_t rejected = 0;         // candidates refused at check time (link, pinch, fold, seam, ...)
+  VetoCounts vetoes;                // candidates refused, per rule (vetoes.rejected(): at check time)
   // Faces that are quads before (input) and after; only the polychord engine outputs quads.
   std::size_t quads_before = 0;
   std::size_t quads_after = 0;
@@ -149,5 +188,7 @@ struct SimplifyResult {
 // locked vertex id is out of range for `mesh`. Faces repeating an earlier face are dropped before anything
 // else (SimplifyResult::repeated_faces_removed).
 SimplifyResult simplify(const Mesh& mesh, const SimplifyOptions& options);
+// The same with caller policies (placement, cost, filter, stop, observer: simplify/policies.hpp).
+SimplifyResult simplify(const Mesh& mesh, const SimplifyOptions& options, const CollapsePolicies& policies);
 
 }  // namespace lodforge

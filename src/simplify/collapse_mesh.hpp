@@ -1,5 +1,7 @@
-// Machinery shared by the collapse engines (edge_collapse.cpp: greedy QEM; multiple_choice.cpp: Wu-Kobbelt).
-// Not a user API: call lodforge::simplify(). It is a header so that both engines and their tests can use it.
+// The working mesh of the triangle engines (edge_collapse.cpp: greedy QEM; multiple_choice.cpp: Wu-Kobbelt):
+// what a vertex may do, the cost and placement of a candidate, the checks that refuse one, and the rewrite
+// that applies one. Engine-internal: call lodforge::simplify(). Its methods live in collapse_mesh.cpp (setup,
+// evaluation, topology checks, commit, output) and seam_rules.cpp (seams, attributes, UVs, skin).
 //
 // The working mesh is a triangle list with per-vertex face lists (CSR-like pool; a list is rewritten in place
 // or moved to the end of the pool when a collapse makes it grow), per-vertex quadrics and positions in double,
@@ -16,6 +18,9 @@
 //
 #pragma once
 
+#include <algorithm>
+#include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <utility>
 #include <vector>
@@ -28,6 +33,7 @@
 #include "lodforge/core/mesh.hpp"
 #include "lodforge/metric/attribute_quadric.hpp"
 #include "lodforge/metric/quadric.hpp"
+#include "lodforge/simplify/policies.hpp"
 #include "lodforge/simplify/simplify.hpp"
 
 namespace lodforge::collapse {
@@ -80,20 +86,38 @@ inline constexpr EdgeRule kEdgeRule[kVertexKinds][kVertexKinds] = {
      EdgeRule::forbidden},  // u frozen
 };
 
-// Why a candidate was refused at check time (for statistics and tests).
-enum class Veto : std::uint8_t {
-  none,
-  not_an_edge,      // a and b share no face (stale candidate), or share more than two
-  link_condition,   // a common neighbour that is not an apex: the collapse would glue two sheets together
-  boundary_pinch,   // interior edge between two boundary vertices: would pinch the surface to one vertex
-  dangling_face,    // the edge's face has its two other edges on the boundary: would leave a dangling edge
-  tetrahedron,      // both faces c-d-a and c-d-b exist: the collapse would fold a tetrahedron flat
-  fold,             // a face normal would turn by more than max_flip_angle_deg
-  degenerate,       // a face would get (almost) zero area
-  seam,             // wedges cannot be carried over without merging distinct attribute values (or materials)
-  uv_flip,          // a face's UV triangle would turn over (or collapse to zero area) in some UV set
-  skin,             // a face would join vertices with different dominant joints and distant weight vectors
-};
+// Check-time refusals are the public Veto (simplify.hpp), under the engines' name too.
+using lodforge::Veto;
+
+
+// Small helpers shared by collapse_mesh.cpp, seam_rules.cpp and the engines.
+
+inline bool finite3(const Vec3d& p) { return std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]); }
+
+// Local corner of vertex v in face t (t has three vertices, one of them v).
+inline int corner_of(const std::uint32_t* t, std::uint32_t v) { return t[0] == v ? 0 : (t[1] == v ? 1 : 2); }
+
+inline constexpr int kNext[3] = {1, 2, 0};
+inline constexpr int kPrev[3] = {2, 0, 1};
+
+// Insertion sort for the short lists of one vertex star (valence ~6), std::sort beyond.
+template <typename T>
+void small_sort(T* p, std::size_t n) {
+  if (n > 32) {
+    std::sort(p, p + n);
+    return;
+  }
+  for (std::size_t i = 1; i < n; ++i) {
+    const T x = p[i];
+    std::size_t j = i;
+    for (; j > 0 && x < p[j - 1]; --j) p[j] = p[j - 1];
+    p[j] = x;
+  }
+}
+
+inline double elapsed_ms(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - since).count();
+}
 
 // Runs loops of independent iterations inside a task arena of `threads` workers (0 = all cores); one thread
 // runs them inline. Iterations write disjoint outputs, so results never depend on the thread count.
@@ -152,9 +176,11 @@ struct Scratch {
 class CollapseMesh {
  public:
   // `triangles` must hold triangles only (simplify() triangulates first). Faces with out-of-range indices or
-  // a repeated vertex are dropped; they carry no surface. Throws std::invalid_argument for out-of-range
-  // locked vertex ids.
-  CollapseMesh(const Mesh& triangles, const SimplifyOptions& options, Parallel& parallel);
+  // a repeated vertex are dropped; they carry no surface (a mesh may be left with none). Throws
+  // std::invalid_argument for out-of-range locked vertex ids. `policies` (may be null) outlives the mesh;
+  // evaluate() and check() consult its placement, cost and filter.
+  CollapseMesh(const Mesh& triangles, const SimplifyOptions& options, Parallel& parallel,
+               const CollapsePolicies* policies = nullptr);
 
   std::size_t alive_faces() const { return alive_faces_; }
   std::size_t vertex_count() const { return vx_.size(); }
@@ -173,6 +199,11 @@ class CollapseMesh {
   // error never depend on the attribute and skin terms, so without `with_cost` they are left out (cost is
   // then the surface's alone): for callers that only need where the vertex goes and how far.
   Evaluation evaluate(std::uint32_t u, std::uint32_t v, bool with_cost = true) const;
+  // evaluate() and check() as the caller's policies see them: model units.
+  CollapseCandidate candidate(std::uint32_t u, std::uint32_t v, const Evaluation& ev) const;
+  // A normalised squared error (Evaluation::error) as a distance in model units.
+  double model_error(double error) const { return std::sqrt(error) * scale_; }
+  Vec3d model_position(const Vec3d& x) const { return origin_ + x * scale_; }
   // Topology, fold and seam tests of collapsing (u, v) to `x`; chooses which endpoint survives. Reads only.
   Check check(std::uint32_t u, std::uint32_t v, const Vec3d& x, Scratch& scratch) const;
   // Applies a checked collapse in two steps: reserve() makes room for the survivor's merged face list (it
@@ -194,16 +225,16 @@ class CollapseMesh {
   // Distinct neighbours of v (not v itself), in a deterministic order.
   void ring(std::uint32_t v, std::vector<std::uint32_t>& out) const;
   // Hints that the face list of v will be read soon.
-  void prefetch_star(std::uint32_t v) const { __builtin_prefetch(&pool_[begin_[v]]); }
+  void prefetch_star(std::uint32_t v) const { __builtin_prefetch(star(v)); }
   // Calls f(w) for every vertex of every face of u and of v (with repeats): their closed neighbourhood.
   template <typename F>
   void for_each_closed_ring_vertex(std::uint32_t u, std::uint32_t v, F&& f) const {
     for (std::uint32_t s : {u, v}) {  // the faces are scattered: ask for all of them before reading one
-      const std::uint32_t* fl = &pool_[begin_[s]];
+      const std::uint32_t* fl = star(s);
       for (std::uint32_t i = 0; i < size_[s]; ++i) __builtin_prefetch(&tri_[3 * std::size_t{fl[i]}]);
     }
     for (std::uint32_t s : {u, v}) {
-      const std::uint32_t* fl = &pool_[begin_[s]];
+      const std::uint32_t* fl = star(s);
       for (std::uint32_t i = 0; i < size_[s]; ++i) {
         const std::uint32_t* t = &tri_[3 * std::size_t{fl[i]}];
         f(t[0]);
@@ -225,6 +256,10 @@ class CollapseMesh {
   // kFan: a single, consistently oriented manifold fan (interior, border and seam vertices), whose boundary
   // status kOpen is kept exact by apply(); check() and ring() take their fast paths on it.
   static constexpr std::uint8_t kDead = 1, kMoved = 2, kSeam = 4, kFan = 8, kOpen = 16;
+  // v's face list (size_[v] entries). Pointer arithmetic, not &pool_[i]: the pool is empty on a mesh without
+  // faces, and a list may start at its end.
+  const std::uint32_t* star(std::uint32_t v) const { return pool_.data() + begin_[v]; }
+  std::uint32_t* star(std::uint32_t v) { return pool_.data() + begin_[v]; }
   std::uint32_t key(std::size_t corner) const { return tri_key_.empty() ? tri_wedge_[corner] : tri_key_[corner]; }
   bool flip_ok(const Vec3d& old_p, const Vec3d& x, const Vec3d& p, const Vec3d& q) const;
   bool wedges_carry_over(std::uint32_t a, std::uint32_t b, const Check& c) const;
@@ -248,6 +283,7 @@ class CollapseMesh {
 
   const Mesh& src_;
   SimplifyOptions options_;
+  const CollapsePolicies* policies_ = nullptr;  // null or with no member set: built-in behaviour only
   Vec3d origin_{};
   double scale_ = 1.0;
   double diagonal_ = 0.0;
@@ -294,21 +330,5 @@ class CollapseMesh {
   std::vector<SkinInfluences> skin_;
   std::vector<float> priority_;            // painted weight per vertex, empty when none
 };
-
-// Recomputes the tangents of `mesh` (triangles) from its normals and UV set 0; no-op without them.
-void recompute_tangents(Mesh& mesh);
-
-// Engines. `triangles` holds triangles only; the result's triangles_before is filled in by simplify().
-SimplifyResult run_edge_collapse(const Mesh& triangles, const SimplifyOptions& options);
-SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions& options);
-
-// Error budget in normalised units (squared, to compare with costs); +inf when unlimited.
-double normalised_budget_squared(const SimplifyOptions& options, double scale, double diagonal);
-// Triangle count to stop at.
-std::size_t target_triangle_count(const SimplifyOptions& options, std::size_t input_triangles);
-// The end of an engine run: the output mesh and its triangle count, the error bound (from the largest committed
-// cost, normalised and squared), why it stopped, and the output time.
-void finish_result(const CollapseMesh& cm, double max_error, std::size_t target, bool over_budget,
-                   SimplifyResult& result);
 
 }  // namespace lodforge::collapse

@@ -1,0 +1,199 @@
+// The greedy engine's candidate queue (a bucketed heap of versioned edge entries) and its parking lot for
+// candidates refused at check time. Engine-internal.
+#pragma once
+
+#include <algorithm>
+#include <bit>
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+#include "collapse_mesh.hpp"
+
+namespace lodforge::collapse {
+
+// A queued candidate: edge (u, v), u < v, and vsum = version[u] + version[v] when it was evaluated. Versions
+// only grow (a collapse bumps both its endpoints, the dead one included), so an unchanged sum means neither
+// endpoint changed since: that is the whole staleness test (lazy invalidation).
+// key = float bits of the cost (costs are >= 0, so the bits order like the values) above u; ties on the key
+// break by v. 16 bytes, kept inline so that popping never chases a pointer.
+struct QueueEntry {
+  std::uint64_t key;
+  std::uint32_t v, vsum;
+  std::uint32_t u() const { return static_cast<std::uint32_t>(key); }
+  std::uint32_t bits() const { return static_cast<std::uint32_t>(key >> 32); }
+};
+
+inline std::uint32_t cost_bits(double cost) { return std::bit_cast<std::uint32_t>(static_cast<float>(cost)); }
+
+inline QueueEntry make_entry(std::uint32_t bits, std::uint32_t u, std::uint32_t v, std::uint32_t vsum) {
+  return {(std::uint64_t{bits} << 32) | u, v, vsum};
+}
+
+inline bool entry_less(const QueueEntry& a, const QueueEntry& b) {
+  return a.key < b.key || (a.key == b.key && a.v < b.v);
+}
+
+// Priority queue: a 4-ary min-heap in front of cost buckets (a bucketed heap).
+//
+// Costs only grow as the mesh coarsens (a quadric sum never loses a term), so nearly every re-evaluated
+// candidate lands above the current minimum. Such pushes go to a bucket (1/16 of an octave of cost, by the
+// float's exponent and top mantissa bits) as a plain append; the heap holds only the lowest non-empty bucket
+// plus whatever is pushed at or below it. When the heap runs dry the next bucket is filtered for stale
+// entries (in parallel: one version lookup each, the dominant cost of a plain heap) and heapified. The pop
+// order is exactly the (key, v) order of a single heap over all live entries.
+class CandidateQueue {
+ public:
+  static constexpr int kBucketShift = 19;  // float bits >> 19: sign, 8 exponent and 4 mantissa bits
+  CandidateQueue() : buckets_(std::size_t{1} << (32 - kBucketShift)) {}
+
+  std::size_t size() const { return stored_; }
+  bool heap_empty() const { return heap_.empty(); }
+  const QueueEntry& top() const { return heap_.front(); }
+
+  void push(const QueueEntry& e) {
+    ++stored_;
+    const std::uint32_t b = e.bits() >> kBucketShift;
+    if (b <= active_ && active_ != kNone) {
+      heap_.push_back(e);
+      sift_up(heap_.size() - 1, e);
+    } else {
+      buckets_[b].push_back(e);
+      first_ = std::min(first_, b);
+    }
+  }
+  void pop() {
+    --stored_;
+    const QueueEntry last = heap_.back();
+    heap_.pop_back();
+    if (heap_.empty()) return;
+    // Bottom-up: walk the hole down along the smaller children to a leaf, then sift the last entry up from
+    // there; the last entry is usually large, so this saves a comparison per level.
+    const std::size_t n = heap_.size();
+    std::size_t i = 0;
+    for (std::size_t c = 1; c < n; c = 4 * i + 1) {
+      const std::size_t best = min_child(c, n);
+      heap_[i] = heap_[best];
+      i = best;
+    }
+    sift_up(i, last);
+  }
+  // Moves the next bucket into the heap once the heap is empty, dropping entries keep() rejects (decided in
+  // parallel). Returns false when nothing is left.
+  template <typename Keep>
+  bool refill(Parallel& parallel, Keep&& keep) {
+    while (heap_.empty()) {
+      while (first_ < buckets_.size() && buckets_[first_].empty()) ++first_;
+      if (first_ >= buckets_.size()) return false;
+      active_ = first_;
+      std::vector<QueueEntry>& bucket = buckets_[active_];
+      stored_ -= bucket.size();
+      keep_flags_.resize(bucket.size());
+      parallel.for_ranges(bucket.size(), 1024, [&](std::size_t b, std::size_t e) {
+        for (std::size_t i = b; i < e; ++i) keep_flags_[i] = keep(bucket[i]) ? 1 : 0;
+      });
+      for (std::size_t i = 0; i < bucket.size(); ++i) {
+        if (keep_flags_[i]) heap_.push_back(bucket[i]);
+      }
+      stored_ += heap_.size();
+      std::vector<QueueEntry>().swap(bucket);  // release: this bucket is now the heap
+      heapify();
+    }
+    return true;
+  }
+  // Drops every entry keep() rejects from the heap and all buckets (bounds memory).
+  template <typename Keep>
+  void purge(Parallel& parallel, Keep&& keep) {
+    std::vector<std::vector<QueueEntry>*> lists;
+    lists.push_back(&heap_);
+    for (auto& b : buckets_) {
+      if (!b.empty()) lists.push_back(&b);
+    }
+    parallel.for_ranges(lists.size(), 1, [&](std::size_t b, std::size_t e) {
+      for (std::size_t i = b; i < e; ++i) {
+        std::vector<QueueEntry>& l = *lists[i];
+        l.erase(std::remove_if(l.begin(), l.end(), [&](const QueueEntry& x) { return !keep(x); }), l.end());
+      }
+    });
+    stored_ = 0;
+    for (auto* l : lists) stored_ += l->size();
+    heapify();
+  }
+
+ private:
+  static constexpr std::uint32_t kNone = 0xffffffffu;
+
+  void heapify() {
+    const std::size_t n = heap_.size();
+    if (n < 2) return;
+    for (std::size_t i = (n - 2) / 4 + 1; i-- > 0;) {
+      const QueueEntry e = heap_[i];
+      std::size_t j = i;
+      for (std::size_t c = 4 * j + 1; c < n; c = 4 * j + 1) {
+        const std::size_t best = min_child(c, n);
+        if (!entry_less(heap_[best], e)) break;
+        heap_[j] = heap_[best];
+        j = best;
+      }
+      heap_[j] = e;
+    }
+  }
+  std::size_t min_child(std::size_t c, std::size_t n) const {
+    const QueueEntry* p = &heap_[c];
+    std::size_t best = 0;
+    const std::size_t end = std::min<std::size_t>(4, n - c);
+    for (std::size_t j = 1; j < end; ++j) best = entry_less(p[j], p[best]) ? j : best;
+    return c + best;
+  }
+  void sift_up(std::size_t i, const QueueEntry& e) {
+    while (i > 0) {
+      const std::size_t p = (i - 1) / 4;
+      if (!entry_less(e, heap_[p])) break;
+      heap_[i] = heap_[p];
+      i = p;
+    }
+    heap_[i] = e;
+  }
+
+  std::vector<std::vector<QueueEntry>> buckets_;
+  std::vector<QueueEntry> heap_;
+  std::vector<std::uint8_t> keep_flags_;
+  std::uint32_t active_ = kNone;  // highest bucket whose entries live in the heap
+  std::uint32_t first_ = 0;       // no bucket below this one holds entries
+  std::size_t stored_ = 0;
+};
+
+// Candidates refused at check time wait here, listed on both endpoints, until a collapse changes either
+// endpoint's neighbourhood; then they are evaluated again. Without this an edge refused once (say by the
+// fold test in a flat region) would never be reconsidered and simplification would stall.
+class ParkingLot {
+ public:
+  explicit ParkingLot(std::size_t vertices) : head_(vertices, kInvalidIndex) {}
+  void park(std::uint32_t u, std::uint32_t v) {
+    for (std::uint32_t s : {u, v}) {
+      entries_.push_back({u, v, head_[s]});
+      head_[s] = static_cast<std::uint32_t>(entries_.size() - 1);
+      ++waiting_;
+    }
+  }
+  // Appends the candidates parked on x to `out` and forgets them there.
+  void release(std::uint32_t x, std::vector<std::pair<std::uint32_t, std::uint32_t>>& out) {
+    for (std::uint32_t i = head_[x]; i != kInvalidIndex; i = entries_[i].next) {
+      out.emplace_back(entries_[i].u, entries_[i].v);
+      --waiting_;
+    }
+    head_[x] = kInvalidIndex;
+  }
+  // Whether any list is non-empty (each candidate counts twice, once per endpoint).
+  bool any() const { return waiting_ > 0; }
+
+ private:
+  struct Entry {
+    std::uint32_t u, v, next;
+  };
+  std::vector<std::uint32_t> head_;
+  std::vector<Entry> entries_;
+  std::size_t waiting_ = 0;
+};
+
+}  // namespace lodforge::collapse
