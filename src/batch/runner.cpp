@@ -104,7 +104,10 @@ void release_free_memory() {
 
 struct MeshLod {
   Mesh mesh;
-  double error_bound_abs = 0;  // against the source: accumulated along "previous" links
+  // Against the source: measured when an error budget was verified (budget), else the QEM errors
+  // accumulated along "previous" links (a ranking, not a bound).
+  double error_bound_abs = 0;
+  BudgetCheck budget;
   StopReason stop = StopReason::target_reached;
   double seconds = 0;
 };
@@ -217,7 +220,11 @@ MeshChain build_chain(const Mesh& source, const AssetClass& cls, std::size_t ass
     LodSpec spec = cls.lods[k];
     const bool chained = spec.from == LodFrom::previous && k > 0;
     const Mesh& from = chained ? chain[k - 1].mesh : source;
-    const double spent = chained ? chain[k - 1].error_bound_abs : 0.0;
+    // An error budget is measured against the source itself, so nothing is spent by the LODs before it.
+    const bool error_target =
+        spec.target.kind == TargetKind::max_error_rel || spec.target.kind == TargetKind::max_error_abs ||
+        spec.target.kind == TargetKind::screen_size;
+    const double spent = chained && !error_target ? chain[k - 1].error_bound_abs : 0.0;
     if (spec.target.kind == TargetKind::triangles && asset_triangles > 0) {
       const double share = static_cast<double>(spec.target.triangles) * static_cast<double>(source_triangles) /
                            static_cast<double>(asset_triangles);
@@ -227,12 +234,14 @@ MeshChain build_chain(const Mesh& source, const AssetClass& cls, std::size_t ass
                                                                   .source_diagonal = asset_diagonal,
                                                                   .accumulated_error_abs = spent});
     options.threads = threads_for(from.triangle_count(), jobs);
+    if (chained) options.budget_reference = &source;
     const auto t0 = Clock::now();
     SimplifyResult r = simplify(from, options);
     MeshLod lod;
     lod.mesh = std::move(r.mesh);
     lod.mesh.name = source.name;
-    lod.error_bound_abs = spent + r.error_bound_abs;
+    lod.error_bound_abs = r.budget.verified ? r.budget.bound_abs : spent + r.qem_error_abs;
+    lod.budget = r.budget;
     lod.stop = r.stop_reason;
     lod.seconds = seconds_since(t0);
     chain.push_back(std::move(lod));
@@ -515,7 +524,7 @@ class Pipeline {
     for (const Mesh& mesh : job.asset.meshes) {
       if (mesh.triangle_count() == 0) {  // e.g. a glTF mesh of lines only: its LODs are itself
         auto chain = std::make_shared<MeshChain>();
-        for (std::size_t k = 0; k < job.cls->lods.size(); ++k) chain->push_back({.mesh = mesh});
+        for (std::size_t k = 0; k < job.cls->lods.size(); ++k) chain->push_back(MeshLod{.mesh = mesh, .error_bound_abs = 0, .budget = {}});
         job.chains.push_back(std::move(chain));
         continue;
       }
@@ -557,6 +566,8 @@ class Pipeline {
       std::vector<const Mesh*> lod_ptrs;
       std::size_t triangles = 0, vertices = 0;
       double bound = 0, seconds = 0;
+      bool verified = true, met = true, certified = true;
+      std::size_t undone = 0;
       std::set<std::string> stops;
       for (std::size_t m = 0; m < job.levels[k].size(); ++m) {
         lod_ptrs.push_back(&job.levels[k][m]);
@@ -565,6 +576,12 @@ class Pipeline {
         const MeshLod& built = (*job.chains[m])[k];
         bound = std::max(bound, built.error_bound_abs);
         seconds += built.seconds;
+        if (job.asset.meshes[m].triangle_count() > 0) {
+          verified = verified && built.budget.verified;
+          met = met && built.budget.within;
+          certified = certified && built.budget.certified;
+          undone += built.budget.collapses_undone;
+        }
         if (job.asset.meshes[m].triangle_count() > 0) stops.insert(stop_reason_name(built.stop));
       }
       std::string stop;
@@ -596,6 +613,10 @@ class Pipeline {
                       {"ratio", double(triangles) / double(job.triangles)},
                       {"error_bound_abs", finite(bound)},
                       {"error_bound_rel", finite(job.diagonal > 0 ? bound / job.diagonal : 0.0)},
+                      // certified: an upper bound on the LOD's distance to the source; measured: met by
+                      // the budget's samples where the bound could not be refined; qem: a ranking only.
+                      {"error_bound_kind", verified ? (certified ? "certified" : "measured") : "qem"},
+                      {"budget", verified ? Json{{"met", met}, {"collapses_backed_off", undone}} : Json(nullptr)},
                       {"mean_rel", finite(e.mean_rel())},
                       {"rms_rel", finite(e.rms_rel())},
                       {"hausdorff_rel", finite(e.hausdorff_rel())},

@@ -177,6 +177,7 @@ void register_simplify(CLI::App& app) {
     double max_error_rel = -1;
     bool keep_attributes = false;
     bool evaluate = false;
+    bool no_verify = false;
   };
   auto a = std::make_shared<Args>();
   CLI::App* cmd = app.add_subcommand("simplify", "Simplify every mesh of an asset and write the result.");
@@ -185,7 +186,11 @@ void register_simplify(CLI::App& app) {
   cmd->add_option("--ratio", a->opt.target_ratio, "target fraction of the input triangles, in (0, 1]")
       ->default_val(0.5);
   cmd->add_option("--triangles", a->opt.target_triangles, "target triangle count (overrides --ratio)");
-  cmd->add_option("--max-error", a->max_error_rel, "error budget as a fraction of the bounding-box diagonal");
+  cmd->add_option("--max-error", a->max_error_rel,
+                  "error budget as a fraction of the asset's bounding-box diagonal: the LOD stays within it of the "
+                  "input, measured both ways");
+  cmd->add_flag("--no-verify", a->no_verify,
+                "stop on the engine's QEM error alone; do not measure the LOD against the budget (faster, not a bound)");
   cmd->add_option("--engine", a->engine, "edge_collapse | multiple_choice | polychord")->default_val("edge_collapse");
   cmd->add_option("--border", a->border, "free | preserve | lock")->default_val("preserve");
   cmd->add_option("--threads", a->opt.threads, "worker threads (0 = all cores)")->default_val(0);
@@ -218,6 +223,7 @@ void register_simplify(CLI::App& app) {
     SimplifyOptions opt = a->opt;
     if (a->keep_attributes) opt.attribute_placement = AttributePlacement::keep;
     opt.max_error_rel = a->max_error_rel;
+    opt.verify_budget = !a->no_verify;
     if (a->engine == "edge_collapse") opt.engine = Engine::edge_collapse;
     else if (a->engine == "multiple_choice") opt.engine = Engine::multiple_choice;
     else if (a->engine == "polychord") opt.engine = Engine::polychord;
@@ -242,14 +248,37 @@ void register_simplify(CLI::App& app) {
     }
     try {
       io::Asset asset = io::load_asset(a->in);
+      // A relative budget is of the asset's diagonal, for every mesh of it.
+      Bounds3 asset_bounds;
+      for (const Mesh& m : asset.meshes) {
+        const Bounds3 b = compute_bounds(m);
+        if (!b.empty()) {
+          asset_bounds.add(b.min);
+          asset_bounds.add(b.max);
+        }
+      }
+      const double diagonal = asset_bounds.diagonal();
+      if (opt.max_error_rel >= 0.0) {
+        opt.max_error_abs = opt.max_error_rel * diagonal;
+        opt.max_error_rel = -1.0;
+      }
+      auto percent = [&](double x) { return diagonal > 0.0 ? 100.0 * x / diagonal : 0.0; };
       for (std::size_t i = 0; i < asset.meshes.size(); ++i) {
         const Mesh& src = asset.meshes[i];
         SimplifyResult r = simplify(src, opt);
-        std::printf("mesh %zu: %zu -> %zu triangles, error bound %.6g (%.4f%% of diagonal), stopped: %s, "
-                    "%.1f ms\n",
-                    i, r.triangles_before, r.triangles_after, r.error_bound_abs, 100.0 * r.error_bound_rel,
+        std::printf("mesh %zu: %zu -> %zu triangles, QEM error %.4f%% of diagonal (a ranking, not a bound), "
+                    "stopped: %s, %.1f ms\n",
+                    i, r.triangles_before, r.triangles_after, percent(r.qem_error_abs),
                     stop_reason_name(r.stop_reason),
                     r.timings.setup_ms + r.timings.initial_costs_ms + r.timings.collapse_ms + r.timings.output_ms);
+        if (r.budget.verified) {
+          std::printf("  budget %.4f%%: %s; LOD to input: bound %.4f%%, measured %.4f%%%s; input to LOD: measured "
+                      "%.4f%% (sampled); %zu collapse(s) backed off, %zu prefix(es) measured, %.1f ms\n",
+                      percent(r.budget.budget_abs), r.budget.within ? "met" : "MISSED", percent(r.budget.bound_abs),
+                      percent(r.budget.sampled_abs), r.budget.certified ? "" : " (bound not refined to the budget: met by measurement)",
+                      percent(r.budget.reverse_abs), r.budget.collapses_undone, r.budget.prefixes_measured,
+                      r.budget.ms);
+        }
         if (r.repeated_faces_removed > 0) {
           std::printf("  note: dropped %zu face(s) repeating an earlier face (same corners, winding and material)\n",
                       r.repeated_faces_removed);
@@ -264,8 +293,10 @@ void register_simplify(CLI::App& app) {
         }
         if (a->evaluate) {
           const EvalResult e = evaluate(src, r.mesh, EvalOptions{.threads = opt.threads});
-          std::printf("  measured: Hausdorff %.4f%%, mean %.5f%%, RMS %.5f%% of diagonal\n", 100 * e.hausdorff_rel(),
-                      100 * e.mean_rel(), 100 * e.rms_rel());
+          std::printf("  measured: Hausdorff %.4f%% (LOD to input %.4f%%), mean %.5f%%, RMS %.5f%% of diagonal; "
+                      "normals off by %.2f deg on average (95%%: %.2f)\n",
+                      100 * e.hausdorff_rel(), percent(e.b_to_a.max), 100 * e.mean_rel(), 100 * e.rms_rel(),
+                      e.normal_deviation_mean_deg, e.normal_deviation_p95_deg);
         }
         asset.meshes[i] = std::move(r.mesh);
       }

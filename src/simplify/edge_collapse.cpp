@@ -47,9 +47,11 @@ constexpr std::size_t kPurgeFactor = 3;
 
 class GreedyEngine {
  public:
-  GreedyEngine(const Mesh& triangles, const SimplifyOptions& options, const CollapsePolicies& policies)
+  GreedyEngine(const Mesh& triangles, const SimplifyOptions& options, const CollapsePolicies& policies,
+               std::vector<CollapseRecord>* log)
       : options_(options),
         policies_(policies),
+        log_(log),
         parallel_(options.threads),
         cm_(triangles, options, parallel_, policies.any() ? &policies : nullptr),
         stop_(stop_rule(options, triangles.triangle_count(), cm_.diagonal())),
@@ -241,6 +243,7 @@ class GreedyEngine {
       committed_.push_back(static_cast<std::uint32_t>(i));
       survivors_.push_back(c.survivor);
       ++result_.collapses;
+      if (log_ != nullptr) log_->push_back({selected_[i].u(), selected_[i].v, evals_[i].position, evals_[i].error});
       if (policies_.on_collapse) {
         policies_.on_collapse({.victim = c.victim,
                                .survivor = c.survivor,
@@ -331,6 +334,7 @@ class GreedyEngine {
 
   const SimplifyOptions& options_;
   const CollapsePolicies& policies_;
+  std::vector<CollapseRecord>* log_;  // null: no log
   Parallel parallel_;
   CollapseMesh cm_;
   const StopRule stop_;
@@ -379,8 +383,8 @@ void finish_result(const CollapseMesh& cm, double max_error, const StopRule& sto
   const auto t0 = std::chrono::steady_clock::now();
   result.mesh = cm.output();
   result.triangles_after = cm.alive_faces();
-  result.error_bound_abs = cm.model_error(max_error);
-  result.error_bound_rel = cm.diagonal() > 0.0 ? result.error_bound_abs / cm.diagonal() : 0.0;
+  result.qem_error_abs = cm.model_error(max_error);
+  result.qem_error_rel = cm.diagonal() > 0.0 ? result.qem_error_abs / cm.diagonal() : 0.0;
   result.stop_reason = stop.reached(cm.alive_faces()) ? StopReason::target_reached
                        : over_budget                   ? StopReason::error_budget
                                                        : StopReason::no_valid_collapse;
@@ -388,9 +392,9 @@ void finish_result(const CollapseMesh& cm, double max_error, const StopRule& sto
 }
 
 SimplifyResult run_edge_collapse(const Mesh& triangles, const SimplifyOptions& options,
-                                 const CollapsePolicies& policies) {
+                                 const CollapsePolicies& policies, std::vector<CollapseRecord>* log) {
   const auto start = std::chrono::steady_clock::now();
-  GreedyEngine engine(triangles, options, policies);
+  GreedyEngine engine(triangles, options, policies, log);
   return engine.run(start);
 }
 

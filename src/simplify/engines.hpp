@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstddef>
+#include <vector>
 
 #include "collapse_mesh.hpp"
 #include "lodforge/core/mesh.hpp"
@@ -12,11 +13,29 @@
 
 namespace lodforge::collapse {
 
+// One committed collapse as the engines log it: replaying a prefix of the log on a fresh working mesh (same
+// input, same options) rebuilds the engine's mesh after that many collapses exactly.
+struct CollapseRecord {
+  std::uint32_t u = 0, v = 0;  // the candidate edge, u < v
+  Vec3d position{};            // normalised (CollapseMesh) coordinates
+  double error = 0;            // Evaluation::error
+};
+
 // Engines. `triangles` holds triangles only; the result's triangles_before is filled in by simplify().
+// `log`, when given, receives every committed collapse in commit order.
 SimplifyResult run_edge_collapse(const Mesh& triangles, const SimplifyOptions& options,
-                                 const CollapsePolicies& policies = {});
+                                 const CollapsePolicies& policies = {}, std::vector<CollapseRecord>* log = nullptr);
 SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions& options,
-                                   const CollapsePolicies& policies = {});
+                                   const CollapsePolicies& policies = {}, std::vector<CollapseRecord>* log = nullptr);
+
+// simplify() with verify_budget and an error budget: runs `engine` with a log, measures its output against the
+// reference and backs off along the log where it exceeds the budget (budget.cpp).
+using LoggedEngine = SimplifyResult (*)(const Mesh&, const SimplifyOptions&, const CollapsePolicies&,
+                                        std::vector<CollapseRecord>*);
+SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, const SimplifyOptions& options,
+                                 const CollapsePolicies& policies);
+// The same measurement of one output (no back-off).
+BudgetCheck measure_budget(const Mesh& output, const Mesh& reference, double budget, unsigned threads);
 
 // The options' targets and budgets as the one stop rule of every engine; `diagonal` that of the mesh's
 // bounding box.

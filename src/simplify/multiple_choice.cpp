@@ -60,7 +60,7 @@ struct Sample {
 }  // namespace
 
 SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions& options,
-                                   const CollapsePolicies& policies) {
+                                   const CollapsePolicies& policies, std::vector<CollapseRecord>* log) {
   SimplifyResult result;
   auto t0 = std::chrono::steady_clock::now();
   Parallel parallel(options.threads);
@@ -172,6 +172,7 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
       cm.commit(w.check, w.eval.position, main_scratch);
       max_error = std::max(max_error, w.eval.error);
       ++result.collapses;
+      if (log != nullptr) log->push_back({w.u, w.v, w.eval.position, w.eval.error});
       if (policies.on_collapse) {
         policies.on_collapse({.victim = w.check.victim,
                               .survivor = w.check.survivor,

@@ -114,6 +114,8 @@ const char* veto_name(Veto v) {
 
 namespace {
 
+bool verifies_budget(const SimplifyOptions& o) { return o.verify_budget && (o.max_error_abs >= 0.0 || o.max_error_rel >= 0.0); }
+
 // Engine::polychord: quad-preserving sub-polychord collapse (quad part) on the polygon mesh as it is; when it
 // stops before the target, the triangle engine takes its output the rest of the way (that output is then
 // triangles, with the pairs that split back into the same two triangles as quads: a LOD chain is quads for its
@@ -169,21 +171,41 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options, c
       r.collapses += q.collapses;
       r.vetoes[Veto::weld] += q.rejected;
       r.vetoes[Veto::error_budget] += q.over_budget;
-      r.error_bound_abs = std::max(r.error_bound_abs, q.error_bound_abs);
+      r.qem_error_abs = std::max(r.qem_error_abs, q.error_bound_abs);
     }
   } else {
     r.mesh = std::move(q.mesh);
     // Normals and UVs of merged wedges changed: tangents follow them, as the triangle engine's do.
     if (options.attribute_placement == AttributePlacement::optimal) collapse::recompute_tangents(r.mesh);
     r.triangles_after = q.triangles_after;
-    r.error_bound_abs = q.error_bound_abs;
+    r.qem_error_abs = q.error_bound_abs;
     r.collapses = q.collapses;
     r.vetoes[Veto::weld] = q.rejected;
     r.vetoes[Veto::error_budget] = q.over_budget;
     r.stop_reason = StopReason::target_reached;
   }
   const double diagonal = compute_bounds(mesh).diagonal();
-  r.error_bound_rel = diagonal > 0.0 ? r.error_bound_abs / diagonal : 0.0;
+  r.qem_error_rel = diagonal > 0.0 ? r.qem_error_abs / diagonal : 0.0;
+  if (verifies_budget(options)) {
+    // The quad engine keeps no replayable log: its output is measured, and where it exceeds the budget the
+    // triangle engine, which backs off along its own log, makes the LOD from the input instead.
+    const Mesh& reference = options.budget_reference != nullptr ? *options.budget_reference : mesh;
+    BudgetCheck check = collapse::measure_budget(r.mesh, reference, stop.max_error, options.threads);
+    if (!check.within) {
+      SimplifyOptions rest = options;
+      rest.engine = Engine::edge_collapse;
+      rest.budget_reference = &reference;
+      const Mesh input = triangulated(mesh);
+      r = collapse::run_within_budget(collapse::run_edge_collapse, input, rest, policies);
+      r.quad_engine_handed_over = true;
+      r.mesh = quad::recover_quads(r.mesh, {.keep_triangles = true});
+      r.budget.prefixes_measured += check.prefixes_measured;
+    } else {
+      r.budget = check;
+      r.error_bound_abs = check.bound_abs;
+      r.error_bound_rel = diagonal > 0.0 ? check.bound_abs / diagonal : 0.0;
+    }
+  }
   r.triangles_before = mesh.triangle_count();
   r.quads_before = q.quads_before;
   r.quads_after = count_face_kinds(r.mesh).quads;
@@ -226,8 +248,10 @@ SimplifyResult simplify(const Mesh& mesh, const SimplifyOptions& options, const 
   const Mesh& tris = all_triangles ? mesh : triangulated_copy;
   const double triangulate_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 
-  SimplifyResult r = options.engine == Engine::multiple_choice ? collapse::run_multiple_choice(tris, options, policies)
-                                                               : collapse::run_edge_collapse(tris, options, policies);
+  const collapse::LoggedEngine engine =
+      options.engine == Engine::multiple_choice ? collapse::run_multiple_choice : collapse::run_edge_collapse;
+  SimplifyResult r = verifies_budget(options) ? collapse::run_within_budget(engine, tris, options, policies)
+                                              : engine(tris, options, policies, nullptr);
   r.triangles_before = mesh.triangle_count();
   r.quads_before = kinds.quads;
   r.timings.setup_ms += triangulate_ms;

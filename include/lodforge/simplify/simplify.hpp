@@ -71,9 +71,9 @@ struct SimplifyOptions {
   // ratio in (0, 1]. The error budgets below may stop earlier (stop_reason says so).
   double target_ratio = 0.5;
   std::size_t target_triangles = 0;  // 0 = use target_ratio
-  // Error budget: no collapse whose error (as in SimplifyResult::error_bound_abs) exceeds it is made; when
-  // only such collapses are left, stop_reason is error_budget. The smaller of the two wins. Negative =
-  // unlimited.
+  // Error budget, a distance: the output stays within it of the input (measured both ways, see
+  // verify_budget); the engine also makes no collapse whose QEM error (SimplifyResult::qem_error_abs) exceeds
+  // it. When it stops the run, stop_reason is error_budget. The smaller of the two wins. Negative = unlimited.
   double max_error_abs = -1.0;       // in model units
   double max_error_rel = -1.0;       // as a fraction of the bounding-box diagonal
   BorderMode border_mode = BorderMode::preserve;
@@ -100,7 +100,7 @@ struct SimplifyOptions {
   // attribute ("_PAINT", "_PAINT.y"), a colour channel ("COLOR_0.r"), or "none". Used when the mesh has it.
   // 1 is neutral, 0 "don't care", priority_lock and above lock the vertex. The quadrics are scaled by the
   // weight squared, so a weight acts on distances: a region painted 10 keeps about a tenth of the error.
-  // The error bound (error_bound_abs) is that of the unpainted surface.
+  // The QEM error (qem_error_abs) is that of the unpainted surface.
   std::string priority_channel = "_LOD_PRIORITY";
   double priority_lock = 1000.0;
   // Skinning: influences below this weight are ignored when finding a vertex's dominant joint and comparing
@@ -108,6 +108,13 @@ struct SimplifyOptions {
   // weight vectors is below skin_max_distance (the blend band of a joint).
   double skin_weight_threshold = 0.1;
   double skin_max_distance = 0.5;
+
+  // Error budgets are verified by measurement (SimplifyResult::budget): the output's distance to
+  // budget_reference (null: the input) must stay within the budget both ways, and where the engine's run
+  // exceeds it, fewer collapses are made. Set budget_reference to the original when simplifying from a
+  // previous LOD, so that errors along a chain do not add up. false: the engine's QEM error alone stops it.
+  bool verify_budget = true;
+  const Mesh* budget_reference = nullptr;
 
   // Every problem at once, one line each; empty = valid.
   std::vector<std::string> validate() const;
@@ -158,15 +165,44 @@ struct VetoCounts {
   }
 };
 
+// How an error budget was held (SimplifyOptions::verify_budget): the engine's run is measured against the
+// input (or budget_reference), and where it exceeds the budget a shorter prefix of the same collapse sequence
+// is taken (bisection over prefixes), so the output never exceeds the budget by measurement.
+struct BudgetCheck {
+  bool verified = false;       // a budget was set and the output measured against it
+  bool within = false;         // the output meets the budget by that measurement (verified only)
+  double budget_abs = 0;       // the budget, model units
+  // Output → reference: bound_abs is an upper bound (no point of the output is farther), refined until it
+  // decides the budget; where flat parts of the output lie on the reference across several of its triangles
+  // the refinement may stop first, and then the largest distance measured decides (certified false).
+  // Reference → output is sampled at the reference's vertices and triangle centroids (a point between samples
+  // may be farther by up to its distance to the nearest sample: the reference's own triangle size).
+  bool certified = false;      // output → reference held by the bound, not by samples
+  double bound_abs = 0;        // upper bound, output → reference
+  double sampled_abs = 0;      // largest distance measured, output → reference
+  double reverse_abs = 0;      // sampled maximum, reference → output
+  std::size_t collapses_undone = 0;  // collapses of the engine's run left out to meet the budget
+  std::size_t prefixes_measured = 0;
+  bool backed_off() const { return collapses_undone > 0; }
+  double ms = 0;               // time spent verifying and backing off
+};
+
 struct SimplifyResult {
   Mesh mesh;
   std::size_t triangles_before = 0;
   std::size_t triangles_after = 0;
   // Running maximum over committed collapses of sqrt(E / W): E the surface quadric error at the new vertex
   // (face planes and boundary constraint planes, not the rubber band), W the surface area the vertex stands
-  // for. An area-weighted RMS distance to the original planes, in model units.
-  double error_bound_abs = 0.0;
-  double error_bound_rel = 0.0;  // error_bound_abs / bounding-box diagonal of the input
+  // for. An area-weighted RMS distance to the original planes, in model units: a ranking, not a bound (the
+  // real distance is often several times larger).
+  double qem_error_abs = 0.0;
+  double qem_error_rel = 0.0;  // qem_error_abs / bounding-box diagonal of the input
+  // A certified upper bound on the distance from any point of the output to the input's surface (one-sided
+  // Hausdorff, eval/distance_bound.hpp), measured when an error budget is verified (budget.verified); -1 when
+  // not measured.
+  double error_bound_abs = -1.0;
+  double error_bound_rel = -1.0;
+  BudgetCheck budget;
   StopReason stop_reason = StopReason::target_reached;
   struct Timings {
     double setup_ms = 0, initial_costs_ms = 0, collapse_ms = 0, output_ms = 0;

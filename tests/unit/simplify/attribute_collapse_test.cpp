@@ -89,7 +89,7 @@ TEST(AttributeCollapse, ZeroWeightsReproduceTheGeometryOnlyResult) {
     EXPECT_EQ(zero.mesh.positions, geometry.mesh.positions) << ratio;
     EXPECT_EQ(zero.mesh.corner_wedge, geometry.mesh.corner_wedge) << ratio;
     EXPECT_EQ(zero.mesh.wedge_vertex, geometry.mesh.wedge_vertex) << ratio;
-    EXPECT_EQ(zero.error_bound_abs, geometry.error_bound_abs) << ratio;
+    EXPECT_EQ(zero.qem_error_abs, geometry.qem_error_abs) << ratio;
     // And the weights do change something when they are not zero (so the comparison above can fail).
     const SimplifyResult with = simplify(m, {.target_ratio = ratio});
     EXPECT_NE(with.mesh.positions, geometry.mesh.positions) << ratio;
@@ -310,7 +310,7 @@ TEST(AttributeCollapse, NormalsEqualUpToRoundingAreNoSeam) {
   const SimplifyResult b = simplify(split, {.target_ratio = 0.1});
   EXPECT_EQ(b.stop_reason, StopReason::target_reached);
   EXPECT_EQ(b.triangles_after, a.triangles_after);
-  EXPECT_NEAR(b.error_bound_rel, a.error_bound_rel, 0.05 * a.error_bound_rel);
+  EXPECT_NEAR(b.qem_error_rel, a.qem_error_rel, 0.05 * a.qem_error_rel);
   EXPECT_EQ(b.mesh.wedge_count(), b.mesh.vertex_count());  // one wedge per vertex left
 
   // Face normals several degrees apart are hard edges: every vertex of the flat-shaded sphere stays a seam.

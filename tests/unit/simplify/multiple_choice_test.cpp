@@ -41,7 +41,7 @@ TEST(MultipleChoice, DeterministicForASeed) {
   const SimplifyResult c = simplify(sphere, mc(0.05, 7, 4));
   EXPECT_TRUE(a.mesh == b.mesh);
   EXPECT_TRUE(a.mesh == c.mesh);
-  EXPECT_EQ(a.error_bound_abs, c.error_bound_abs);
+  EXPECT_EQ(a.qem_error_abs, c.qem_error_abs);
   // Another seed draws other candidates.
   const SimplifyResult d = simplify(sphere, mc(0.05, 8, 1));
   EXPECT_FALSE(a.mesh == d.mesh);
@@ -75,7 +75,7 @@ TEST(MultipleChoice, RespectsLocksAndBudget) {
   b.max_error_rel = 1e-3;
   const SimplifyResult rb = simplify(make_bumpy_sphere(40, 60), b);
   EXPECT_EQ(rb.stop_reason, StopReason::error_budget);
-  EXPECT_LE(rb.error_bound_rel, 1e-3);
+  EXPECT_LE(rb.qem_error_rel, 1e-3);
 }
 
 TEST(MultipleChoice, TetrahedronStops) {

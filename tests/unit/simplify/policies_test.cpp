@@ -82,7 +82,7 @@ TEST(CollapsePolicies, ObserverSeesEveryCollapseInOrder) {
       max_error = std::max(max_error, events[i].error);
     }
     EXPECT_EQ(events.back().triangles, r.triangles_after);
-    EXPECT_DOUBLE_EQ(max_error, r.error_bound_abs);  // the bound is the largest committed error
+    EXPECT_DOUBLE_EQ(max_error, r.qem_error_abs);  // the QEM error is the largest committed one
   }
 }
 

@@ -1,0 +1,62 @@
+// A certified upper bound on the one-sided Hausdorff distance from a mesh's surface to a target surface:
+// the largest distance from any point of `mesh` (not only sampled ones) to the closest point of the target.
+//
+//   SurfaceIndex source = SurfaceIndex(original);           // BVH of the target, reusable across LODs
+//   DistanceBound b = distance_bound(lod, source, {.tolerance = 0.1});
+//   // b.lower <= max over lod of dist(p, original) <= b.upper
+//
+// Branch and bound over the mesh's triangles: the distance to a fixed surface is 1-Lipschitz, so every point
+// of a triangle is within d(centroid) + R of the target, R the largest centroid-to-corner distance. Triangles
+// whose bound could still be the maximum are split into four, in rounds (each round's queries in parallel, the
+// result independent of the thread count), until the largest bound is within `tolerance` of the largest
+// distance measured. Sampling alone cannot give this: a sampled maximum is only a lower bound.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "lodforge/core/mesh.hpp"
+#include "lodforge/eval/bvh.hpp"
+
+namespace lodforge {
+
+// A mesh's triangles with their BVH, for queries against it (the target of distance_bound()).
+struct SurfaceIndex {
+  SurfaceIndex() = default;
+  explicit SurfaceIndex(const Mesh& mesh);
+  std::vector<Vec3d> positions;
+  std::vector<std::uint32_t> indices;  // three per triangle (triangle_vertex_indices)
+  TriangleBvh bvh;
+  bool empty() const { return bvh.empty(); }
+};
+
+struct DistanceBoundOptions {
+  double tolerance = 0.1;  // stop when upper <= (1 + tolerance) × lower (or below `good_enough`)
+  // Triangles whose bound is at or below this need no refinement (distances this small do not matter to the
+  // caller); 0: refine down to `tolerance`. Also what a zero-distance mesh reports at most.
+  double good_enough = 0.0;
+  // Stop as soon as a measured distance exceeds this (the caller only needs to know that it does).
+  double give_up_above = std::numeric_limits<double>::infinity();
+  int max_rounds = 24;     // each round halves the triangles' size
+  std::size_t max_queries = 0;  // 0: 64 × triangles + 1M; past it the bound stays valid, only looser
+  unsigned threads = 0;    // 0 = all cores
+};
+
+struct DistanceBound {
+  double upper = 0;   // no point of the mesh is farther than this from the target (+inf: target empty)
+  double lower = 0;   // the largest distance actually measured (a point of the mesh this far exists)
+  std::size_t queries = 0;  // closest-point queries made
+  int rounds = 0;
+  bool gave_up = false;  // stopped because `lower` exceeded give_up_above (then `upper` is +inf)
+  // Every part of the mesh got its bound within the tolerance (or good_enough); false when max_rounds or
+  // max_queries stopped the refinement first: `upper` is still a bound, only looser. Parts lying flat on the
+  // target across several of its triangles converge slowly (a Lipschitz bound reaches zero only in the limit).
+  bool converged = true;
+};
+
+// Triangles with a non-finite corner are skipped; a mesh without triangles gives {0, 0}.
+DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const DistanceBoundOptions& options = {});
+
+}  // namespace lodforge

@@ -1,0 +1,90 @@
+#include "lodforge/eval/distance_bound.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "lodforge/eval/eval.hpp"
+#include "test_support.hpp"
+
+namespace lodforge {
+namespace {
+
+// One triangle in z = 0 and another lifted by h at one corner: the farthest point of the lifted one is that
+// corner, exactly h away.
+TEST(DistanceBound, BoundsTheTrueMaximumTightly) {
+  Mesh flat;
+  for (const Vec3f& p : {Vec3f{{0, 0, 0}}, Vec3f{{4, 0, 0}}, Vec3f{{0, 4, 0}}}) flat.add_vertex_with_wedge(p);
+  flat.add_face({0, 1, 2});
+  Mesh lifted;
+  for (const Vec3f& p : {Vec3f{{1, 1, 0}}, Vec3f{{2, 1, 0}}, Vec3f{{1, 2, 0.5f}}}) lifted.add_vertex_with_wedge(p);
+  lifted.add_face({0, 1, 2});
+  const SurfaceIndex target(flat);
+  const DistanceBound b = distance_bound(lifted, target, {.tolerance = 0.05});
+  EXPECT_DOUBLE_EQ(b.lower, 0.5);
+  EXPECT_GE(b.upper, 0.5);
+  EXPECT_LE(b.upper, 0.5 * 1.05 + 1e-12);
+}
+
+// A bump in the middle of a triangle's face, far from every vertex: corner samples see nothing, the bound
+// must still cover it. The target is a tent whose apex sits above the flat triangle's interior.
+TEST(DistanceBound, FindsAMaximumInsideATriangle) {
+  Mesh tent;  // a square pyramid over [0,4]² with apex (2, 2, 1)
+  for (const Vec3f& p : {Vec3f{{0, 0, 0}}, Vec3f{{4, 0, 0}}, Vec3f{{4, 4, 0}}, Vec3f{{0, 4, 0}}, Vec3f{{2, 2, 1}}}) {
+    tent.add_vertex_with_wedge(p);
+  }
+  for (std::uint32_t i = 0; i < 4; ++i) tent.add_face({i, (i + 1) % 4, 4});
+  Mesh square;  // its base, as two triangles: every corner lies on the tent
+  for (const Vec3f& p : {Vec3f{{0, 0, 0}}, Vec3f{{4, 0, 0}}, Vec3f{{4, 4, 0}}, Vec3f{{0, 4, 0}}}) {
+    square.add_vertex_with_wedge(p);
+  }
+  square.add_face({0, 1, 2});
+  square.add_face({0, 2, 3});
+  const SurfaceIndex target(tent);
+  const DistanceBound b = distance_bound(square, target, {.tolerance = 0.02});
+  // The base's centre (2, 2, 0) is farthest from the tent: 2/sqrt(5) from each of its faces (slope 1/2).
+  const double truth = 2.0 / std::sqrt(5.0);
+  EXPECT_GE(b.upper, truth);
+  EXPECT_LE(b.upper, truth * 1.02 + 1e-9);
+  EXPECT_GT(b.lower, 0.9 * truth);
+  EXPECT_GT(b.rounds, 1);
+}
+
+TEST(DistanceBound, IsAtLeastTheSampledMaximum) {
+  const Mesh sphere = testing::make_uv_sphere(12, 16, 1.0f);
+  const Mesh fine = testing::make_uv_sphere(48, 64, 1.0f);
+  const EvalResult e = evaluate(fine, sphere);
+  const DistanceBound b = distance_bound(sphere, SurfaceIndex(fine), {.tolerance = 0.1});
+  EXPECT_GE(b.upper, e.b_to_a.max);
+  EXPECT_LE(b.upper, 1.1 * b.lower + 1e-12);
+  EXPECT_LE(b.lower, b.upper);
+}
+
+TEST(DistanceBound, GivesUpAboveAThresholdAndIsThreadIndependent) {
+  const Mesh sphere = testing::make_uv_sphere(12, 16, 1.0f);
+  const Mesh fine = testing::make_uv_sphere(48, 64, 1.0f);
+  const SurfaceIndex target(fine);
+  const DistanceBound full = distance_bound(sphere, target);
+  const DistanceBound quick = distance_bound(sphere, target, {.give_up_above = 0.5 * full.lower});
+  EXPECT_TRUE(quick.gave_up);
+  EXPECT_TRUE(std::isinf(quick.upper));
+  EXPECT_LE(quick.queries, full.queries);
+  const DistanceBound one = distance_bound(sphere, target, {.threads = 1});
+  const DistanceBound two = distance_bound(sphere, target, {.threads = 2});
+  EXPECT_EQ(one.upper, two.upper);
+  EXPECT_EQ(one.lower, two.lower);
+  EXPECT_EQ(one.queries, two.queries);
+}
+
+TEST(DistanceBound, EmptyMeshesAndIdenticalSurfaces) {
+  const Mesh sphere = testing::make_uv_sphere(8, 12, 1.0f);
+  EXPECT_EQ(distance_bound(Mesh{}, SurfaceIndex(sphere)).upper, 0.0);
+  EXPECT_TRUE(std::isinf(distance_bound(sphere, SurfaceIndex(Mesh{})).upper));
+  // The same surface: zero measured; refinement stops at `good_enough`.
+  const DistanceBound same = distance_bound(sphere, SurfaceIndex(sphere), {.good_enough = 1e-3});
+  EXPECT_LE(same.lower, 1e-12);
+  EXPECT_LE(same.upper, 1e-3);
+}
+
+}  // namespace
+}  // namespace lodforge

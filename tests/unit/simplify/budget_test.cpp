@@ -1,0 +1,127 @@
+// Error budgets held by measurement: verification against the input, back-off along the collapse sequence,
+// a reference other than the input (LOD chains), and the comparison with the oracle prefix.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "lodforge/eval/eval.hpp"
+#include "lodforge/simplify/policies.hpp"
+#include "lodforge/simplify/simplify.hpp"
+#include "simplify_fixtures.hpp"
+#include "test_support.hpp"
+
+namespace lodforge {
+namespace {
+
+using simplify_test::make_bumpy_grid;
+using simplify_test::make_bumpy_sphere;
+
+// The decision samples the output at many points (the bound's refinement) and the input at its vertices and
+// triangle centroids; the evaluator's denser samples may find up to this much more.
+constexpr double kSamplingTolerance = 0.1;
+
+TEST(ErrorBudget, VerifiedOutputStaysWithinTheBudgetWhereTheQemAloneDoesNot) {
+  const Mesh sphere = make_bumpy_sphere(40, 60);
+  for (double budget : {0.001, 0.004, 0.02}) {
+    const SimplifyOptions o{.target_ratio = 0.001, .max_error_rel = budget};
+    SimplifyOptions unverified = o;
+    unverified.verify_budget = false;
+    const SimplifyResult engine = simplify(sphere, unverified);
+    const SimplifyResult held = simplify(sphere, o);
+    EXPECT_FALSE(engine.budget.verified);
+    EXPECT_LT(engine.error_bound_abs, 0.0);  // not measured
+    ASSERT_TRUE(held.budget.verified);
+    EXPECT_TRUE(held.budget.within) << budget;
+    const EvalResult e = evaluate(sphere, held.mesh);
+    EXPECT_LE(e.hausdorff_rel(), budget * (1 + kSamplingTolerance)) << budget;
+    EXPECT_GE(held.error_bound_abs, e.b_to_a.max * (1 - 1e-9)) << "the bound bounds the measured distance";
+    EXPECT_LE(held.budget.sampled_abs, held.budget.bound_abs);
+    // The QEM stop alone overshoots the budget (what made verification necessary), so the verified LOD keeps
+    // more triangles.
+    EXPECT_GT(evaluate(sphere, engine.mesh).hausdorff_rel(), budget) << budget;
+    EXPECT_GT(held.budget.collapses_undone, 0u);
+    EXPECT_GT(held.triangles_after, engine.triangles_after);
+    EXPECT_EQ(held.stop_reason, StopReason::error_budget);
+    EXPECT_EQ(held.triangles_after, held.mesh.triangle_count());
+  }
+}
+
+TEST(ErrorBudget, AHeldRunIsTheEnginesOwnOutput) {
+  // A budget the engine's run already meets: nothing is backed off and the mesh is the engine's, byte for byte.
+  const Mesh sphere = make_bumpy_sphere(24, 32);
+  SimplifyOptions o{.target_ratio = 0.5, .max_error_rel = 0.05};
+  const SimplifyResult held = simplify(sphere, o);
+  o.verify_budget = false;
+  const SimplifyResult engine = simplify(sphere, o);
+  EXPECT_TRUE(held.budget.within);
+  EXPECT_EQ(held.budget.collapses_undone, 0u);
+  EXPECT_EQ(held.budget.prefixes_measured, 1u);
+  EXPECT_EQ(held.mesh, engine.mesh);
+  EXPECT_EQ(held.stop_reason, StopReason::target_reached);
+}
+
+TEST(ErrorBudget, BackOffIsTheSameOnAnyThreadCountAndForBothTriangleEngines) {
+  const Mesh grid = make_bumpy_grid(30);
+  for (Engine engine : {Engine::edge_collapse, Engine::multiple_choice}) {
+    const SimplifyOptions o1{.target_ratio = 0.01, .max_error_rel = 0.003, .threads = 1, .engine = engine};
+    SimplifyOptions o2 = o1;
+    o2.threads = 2;
+    const SimplifyResult a = simplify(grid, o1), b = simplify(grid, o2);
+    EXPECT_EQ(a.mesh, b.mesh);
+    EXPECT_EQ(a.budget.bound_abs, b.budget.bound_abs);
+    EXPECT_TRUE(a.budget.within);
+    EXPECT_LE(evaluate(grid, a.mesh).hausdorff_rel(), 0.003 * (1 + kSamplingTolerance));
+  }
+}
+
+TEST(ErrorBudget, ChainsAreMeasuredAgainstTheReference) {
+  // A LOD made from a previous LOD is held to the budget against the original, not against its input.
+  const Mesh sphere = make_bumpy_sphere(40, 60);
+  const SimplifyResult first = simplify(sphere, {.target_ratio = 0.001, .max_error_rel = 0.003});
+  const double diag = compute_bounds(sphere).diagonal();
+  SimplifyOptions next{.target_ratio = 0.001, .max_error_abs = 0.006 * diag};
+  next.budget_reference = &sphere;
+  const SimplifyResult second = simplify(first.mesh, next);
+  EXPECT_TRUE(second.budget.within);
+  EXPECT_LE(evaluate(sphere, second.mesh).hausdorff_rel(), 0.006 * (1 + kSamplingTolerance));
+  EXPECT_LT(second.triangles_after, first.triangles_after);
+}
+
+TEST(ErrorBudget, PolychordOutputsAreMeasuredToo) {
+  const Mesh grid = testing::make_grid(16, 16, true);
+  Mesh bumpy = grid;
+  for (Vec3f& p : bumpy.positions) p[2] = static_cast<float>(0.4 * std::sin(0.8 * p[0]) * std::cos(0.6 * p[1]));
+  const double budget = 0.004;
+  const SimplifyResult r = simplify(bumpy, {.target_ratio = 0.01, .max_error_rel = budget, .engine = Engine::polychord});
+  ASSERT_TRUE(r.budget.verified);
+  EXPECT_TRUE(r.budget.within);
+  EXPECT_LE(evaluate(bumpy, r.mesh).hausdorff_rel(), budget * (1 + kSamplingTolerance));
+}
+
+// The oracle: along the engine's own collapse sequence (one collapse per round), the longest prefix all of
+// whose shorter prefixes meet the budget by measurement. The held LOD is not over-cautious against it.
+TEST(ErrorBudget, WithinAQuarterOfTheOraclePrefix) {
+  const Mesh sphere = make_bumpy_sphere(10, 14);
+  const double budget = 0.01;
+  const double diag = compute_bounds(sphere).diagonal();
+  SimplifyOptions o{.target_ratio = 0.01, .max_error_rel = budget, .max_batch = 1};
+  const SimplifyResult held = simplify(sphere, o);
+  ASSERT_TRUE(held.budget.within);
+  SimplifyOptions plain = o;
+  plain.verify_budget = false;
+  std::size_t oracle_triangles = sphere.triangle_count();
+  for (std::size_t k = 1;; ++k) {
+    const CollapsePolicies stop_at{.stop = [k](const StopState& s) { return s.collapses >= k; }};
+    const SimplifyResult prefix = simplify(sphere, plain, stop_at);
+    if (prefix.collapses < k) break;  // the engine's run ended
+    if (evaluate(sphere, prefix.mesh, {.samples = 20000}).hausdorff > budget * diag) break;
+    oracle_triangles = prefix.triangles_after;
+  }
+  EXPECT_LE(static_cast<double>(held.triangles_after), 1.25 * static_cast<double>(oracle_triangles))
+      << "held " << held.triangles_after << ", oracle " << oracle_triangles << " bound " << held.budget.bound_abs / diag
+      << " sampled " << held.budget.sampled_abs / diag << " reverse " << held.budget.reverse_abs / diag << " undone "
+      << held.budget.collapses_undone << " measured " << held.budget.prefixes_measured << " collapses " << held.collapses;
+}
+
+}  // namespace
+}  // namespace lodforge
