@@ -136,6 +136,73 @@ void check_json_depth(const std::filesystem::path& path, std::string_view text) 
   }
 }
 
+// nlohmann's message without its "[json.exception.parse_error.101] " prefix.
+std::string json_reason(const nlohmann::json::exception& e) {
+  std::string what = e.what();
+  if (const auto close = what.find("] "); what.rfind("[json.exception", 0) == 0 && close != std::string::npos) {
+    what.erase(0, close + 2);
+  }
+  return what;
+}
+
+// "accessors[0].max" for plain keys, extras["odd key"] otherwise.
+std::string json_child(const std::string& path, const std::string& key) {
+  const bool plain = !key.empty() && std::all_of(key.begin(), key.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_';
+  });
+  if (!plain) return path + "[" + OrderedJson(key).dump() + "]";
+  return path.empty() ? key : path + "." + key;
+}
+
+// The JSON path of the value the parser stopped at ("accessors[0].max[0]"), found by parsing `text` again with
+// a callback that follows keys and array positions: nlohmann's number-overflow error names no position.
+std::string json_path_of_failure(std::string_view text) {
+  struct Frame {
+    bool array = false;
+    std::string key;        // objects: the key of the value being parsed
+    std::size_t count = 0;  // arrays: values begun so far (a container counts when it opens, a scalar when parsed)
+  };
+  std::vector<Frame> frames;
+  using Event = nlohmann::json::parse_event_t;
+  const auto follow = [&frames](int, Event event, OrderedJson& parsed) {
+    switch (event) {
+      case Event::object_start:
+      case Event::array_start:
+        if (!frames.empty() && frames.back().array) ++frames.back().count;
+        frames.push_back({.array = event == Event::array_start, .key = {}, .count = 0});
+        break;
+      case Event::key:
+        frames.back().key = parsed.get<std::string>();
+        break;
+      case Event::object_end:
+      case Event::array_end:
+        frames.pop_back();
+        break;
+      case Event::value:
+        if (!frames.empty() && frames.back().array) ++frames.back().count;
+        break;
+    }
+    return true;
+  };
+  try {
+    [[maybe_unused]] const OrderedJson whole = OrderedJson::parse(text.begin(), text.end(), follow);
+  } catch (const nlohmann::json::exception&) {
+    // expected: the frames now lead to the failing value
+  }
+  std::string path;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    const Frame& f = frames[i];
+    if (!f.array) {
+      path = json_child(path, f.key);
+    } else {
+      // The failing value is a scalar not yet counted; an enclosing array counted its open child already.
+      const std::size_t index = i + 1 == frames.size() ? f.count : f.count - 1;
+      path += "[" + std::to_string(index) + "]";
+    }
+  }
+  return path.empty() ? "the top level" : path;
+}
+
 OrderedJson parse_json(const std::filesystem::path& path, std::string_view text) {
   check_json_depth(path, text);
   try {
@@ -143,11 +210,15 @@ OrderedJson parse_json(const std::filesystem::path& path, std::string_view text)
     if (!j.is_object()) throw IoError(path, "the glTF JSON is not an object");
     return j;
   } catch (const nlohmann::json::parse_error& e) {
-    std::string what = e.what();
-    if (const auto close = what.find("] "); what.rfind("[json.exception", 0) == 0 && close != std::string::npos) {
-      what.erase(0, close + 2);  // drop nlohmann's "[json.exception.parse_error.101] " prefix
-    }
-    throw IoError(path, "JSON syntax error: " + what);
+    throw IoError(path, "JSON syntax error: " + json_reason(e));
+  } catch (const nlohmann::json::out_of_range& e) {
+    // The one out_of_range a parse throws: a number beyond double (1e999), which the JSON grammar allows.
+    std::string token = json_reason(e);
+    if (const auto open = token.find('\''); open != std::string::npos) token.erase(0, open);
+    if (token.size() > 34) token = token.substr(0, 30) + "...'";
+    throw IoError(path, json_path_of_failure(text) + ": number " + token + " is out of range (too large for a double)");
+  } catch (const nlohmann::json::exception& e) {
+    throw IoError(path, "invalid JSON: " + json_reason(e));
   }
 }
 

@@ -26,6 +26,18 @@ bool no_temporaries(const fs::path& dir) {
   return true;
 }
 
+// A one-triangle glTF (positions and indices in a data URI) whose POSITION accessor's "max" is `max`.
+std::string triangle_gltf(const std::string& max) {
+  return R"({"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+  "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": )" +
+         max + R"(},
+                {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 6}],
+  "buffers": [{"byteLength": 44,
+    "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA="}]})";
+}
+
 TEST(Cli, HelpListsSubcommandsAndExitCodes) {
   const CliRun r = run_cli("--help");
   EXPECT_EQ(r.exit_code, 0);
@@ -61,6 +73,24 @@ TEST(Cli, ConvertEmptyAndWrongMagicGlbExitTwo) {
     EXPECT_EQ(r.exit_code, 2) << name << ": " << r.output;
     EXPECT_NE(r.output.find(name), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(dir / "out.glb"));
+  }
+  EXPECT_TRUE(no_temporaries(dir));
+}
+
+TEST(Cli, GltfNumberOutOfRangeIsBadInputInEveryCommand) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_gltf_number_range");
+  const fs::path good = dir / "good.gltf", bad = dir / "bad.gltf", out = dir / "out.glb";
+  write_text(good, triangle_gltf("[1, 1, 0]"));
+  write_text(bad, triangle_gltf("[1e999, 1, 0]"));
+  ASSERT_EQ(run_cli("info " + good.string()).exit_code, 0);
+  const std::string message = bad.string() + ": accessors[0].max[0]: number '1e999' is out of range";
+  for (const std::string& args :
+       {"info " + bad.string(), "convert " + bad.string() + " " + out.string(),
+        "simplify " + bad.string() + " " + out.string(), "eval " + good.string() + " " + bad.string()}) {
+    const CliRun r = run_cli(args);
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find("error: " + message), std::string::npos) << args << "\n" << r.output;
+    EXPECT_FALSE(fs::exists(out)) << args;
   }
   EXPECT_TRUE(no_temporaries(dir));
 }

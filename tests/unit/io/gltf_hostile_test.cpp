@@ -70,8 +70,8 @@ json triangle_doc(const std::string& bin, const std::string& bin_uri = "") {
   };
 }
 
-std::string glb_of(const json& doc, const std::string& bin) {
-  std::string j = doc.dump();
+// A GLB of the JSON text `j` (raw text, so that a test can hold what json would refuse to build) and `bin`.
+std::string glb_of(std::string j, const std::string& bin) {
   while (j.size() % 4) j.push_back(' ');
   std::string b = bin;
   while (b.size() % 4) b.push_back('\0');
@@ -86,6 +86,18 @@ std::string glb_of(const json& doc, const std::string& bin) {
   out.append("BIN\0", 4);
   out += b;
   return out;
+}
+
+std::string glb_of(const json& doc, const std::string& bin) {
+  return glb_of(doc.dump(), bin);
+}
+
+// `text` with its only occurrence of `from` replaced by `to`.
+std::string replaced(std::string text, const std::string& from, const std::string& to) {
+  const auto at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  return text;
 }
 
 json glb_triangle_doc(const std::string& bin) {
@@ -195,6 +207,26 @@ TEST(GltfHostile, JsonNestedTooDeep) {
   const std::string deep =
       "{\"asset\":{\"version\":\"2.0\"},\"extras\":" + std::string(100000, '[') + std::string(100000, ']') + "}";
   expect_rejected(dir, write_bytes(dir / "d.gltf", deep), {"nested deeper"});
+}
+
+TEST(GltfHostile, NumberBeyondDouble) {
+  // Valid JSON grammar, but no double holds it: the parser throws out_of_range, not parse_error.
+  const fs::path dir = testing::temp_dir("gltf_hostile_number_range");
+  const std::string text = replaced(triangle_doc(triangle_bin()).dump(), "\"max\":[1,1,0]", "\"max\":[1e999,1,0]");
+  expect_rejected(dir, write_bytes(dir / "t.gltf", text), {"accessors[0].max[0]", "'1e999'", "out of range"});
+  const std::string glb_text =
+      replaced(glb_triangle_doc(triangle_bin()).dump(), "\"max\":[1,1,0]", "\"max\":[1,-1e999,0]");
+  expect_rejected(dir, write_bytes(dir / "t.glb", glb_of(glb_text, triangle_bin())),
+                  {"accessors[0].max[1]", "'-1e999'", "out of range"});
+}
+
+TEST(GltfHostile, NumberBeyondDoubleDeepInExtras) {
+  const fs::path dir = testing::temp_dir("gltf_hostile_number_range_deep");
+  json d = triangle_doc(triangle_bin());
+  d["nodes"][0]["extras"] = {{"odd key", {{{"a", 1}}, {0, 1, "PLACEHOLDER"}}}};
+  const std::string text = replaced(d.dump(), "\"PLACEHOLDER\"", "1" + std::string(400, '0'));
+  expect_rejected(dir, write_bytes(dir / "t.gltf", text),
+                  {"nodes[0].extras[\"odd key\"][1][2]", "out of range", "..."});
 }
 
 TEST(GltfHostile, BufferUriOutsideTheFolder) {
