@@ -95,6 +95,20 @@ TEST(Cli, GltfNumberOutOfRangeIsBadInputInEveryCommand) {
   EXPECT_TRUE(no_temporaries(dir));
 }
 
+TEST(Cli, EscapedExceptionIsAnInternalErrorOnOneLine) {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  GTEST_SKIP() << "a sanitizer's shadow memory does not fit under ulimit -v";
+#endif
+  // Out of memory while reading a file: not bad input (exit 2), and no abort either.
+  const fs::path dir = lodforge::testing::temp_dir("cli_internal_error");
+  write_text(dir / "huge.obj", "");
+  fs::resize_file(dir / "huge.obj", 1ull << 30);  // sparse: no disk space used
+  const CliRun r = lodforge::testing::run_command("ulimit -v 200000 && " + std::string(LODFORGE_CLI) + " info " +
+                                                  lodforge::testing::shell_quote(dir / "huge.obj"));
+  EXPECT_EQ(r.exit_code, 3) << r.output;
+  EXPECT_EQ(r.output, "internal error: out of memory\n");
+}
+
 TEST(Cli, DemoLibraryLoadsCleanlyWithInfo) {
   const fs::path dir = lodforge::testing::temp_dir("cli_demo");
   ASSERT_EQ(run_cli("demo " + dir.string()).exit_code, 0);
