@@ -229,6 +229,21 @@ TEST(BatchCli, BadGltfFailsWithTheMessageOfTheSingleFileCommands) {
   EXPECT_TRUE(fs::exists(dir / "out/props/prop_0_LOD1.obj")) << "the others completed";
 }
 
+TEST(BatchCli, SymbolicLinkLoopIsSkippedWithAWarning) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_link_loop");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 6);
+  fs::create_symlink("b", lib.root / "a");
+  fs::create_symlink("a", lib.root / "b");
+  const CliResult r = run_cli(run_args(testlib::write_config(dir), lib.root, dir / "out"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("warning: " + (lib.root / "a").string() + ": skipped: symbolic link loop\n"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find(std::to_string(lib.files.size()) + " assets: " + std::to_string(lib.files.size()) + " ok"),
+            std::string::npos)
+      << r.output;
+}
+
 TEST(BatchCli, UsageAndConfigErrorsExitTwoAndWriteNothing) {
   const fs::path dir = lodforge::testing::temp_dir("batch_cli_usage");
   const testlib::Library lib = testlib::write_library(dir / "lib", 3);

@@ -109,6 +109,20 @@ TEST(Cli, EscapedExceptionIsAnInternalErrorOnOneLine) {
   EXPECT_EQ(r.output, "internal error: out of memory\n");
 }
 
+TEST(Cli, InfoOnAFolderSkipsASymbolicLinkLoopWithAWarning) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_info_link_loop");
+  write_text(dir / "t.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  fs::create_symlink("b", dir / "a");
+  fs::create_symlink("a", dir / "b");
+  const CliRun r = run_cli("info " + dir.string());
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  for (const char* loop : {"a", "b"}) {
+    EXPECT_NE(r.output.find("warning: " + (dir / loop).string() + ": skipped: symbolic link loop\n"), std::string::npos)
+        << r.output;
+  }
+  EXPECT_NE(r.output.find("summary: 1 asset(s) loaded, 0 failed"), std::string::npos) << r.output;
+}
+
 TEST(Cli, DemoLibraryLoadsCleanlyWithInfo) {
   const fs::path dir = lodforge::testing::temp_dir("cli_demo");
   ASSERT_EQ(run_cli("demo " + dir.string()).exit_code, 0);
