@@ -856,8 +856,10 @@ LibraryScan scan_library(const fs::path& input_dir) {
       if (open_ec) skip(it->path(), "cannot open the folder: " + open_ec.message());
       continue;
     }
+    // Lexically: fs::relative would resolve a linked file to its target's path (a duplicate, or "../x.obj",
+    // whose LODs would be written outside the output folder).
     if (type == fs::file_type::regular && supported(it->path())) {
-      out.assets.push_back(fs::relative(it->path(), input_dir).generic_string());
+      out.assets.push_back(it->path().lexically_relative(input_dir).generic_string());
     }
   }
   if (ec) throw io::IoError(input_dir, "cannot list the folder: " + ec.message());

@@ -483,6 +483,17 @@ TEST(BatchRunner, ScanSkipsSymbolicLinkLoopsAndBrokenLinksWithAWarning) {
                                       (dir / "sub/self.glb").string() + ": skipped: symbolic link loop"}));
 }
 
+TEST(BatchRunner, ScanListsALinkedFileUnderItsOwnName) {
+  const fs::path dir = testing::temp_dir("batch_runner_scan_alias");
+  fs::create_directories(dir / "lib/props");
+  std::ofstream(dir / "lib/props/crate.obj") << "x";
+  std::ofstream(dir / "elsewhere.obj") << "x";
+  fs::create_symlink("crate.obj", dir / "lib/props/crate_alias.obj");
+  fs::create_symlink("../../elsewhere.obj", dir / "lib/props/shared.obj");  // target outside the library
+  EXPECT_EQ(scan_library(dir / "lib").assets,
+            (std::vector<std::string>{"props/crate.obj", "props/crate_alias.obj", "props/shared.obj"}));
+}
+
 TEST(BatchRunner, ScanSkipsAFolderItCannotOpenWithAWarning) {
   if (::geteuid() == 0) GTEST_SKIP() << "root opens every folder";
   const fs::path dir = testing::temp_dir("batch_runner_scan_locked");
