@@ -72,6 +72,7 @@ GlbParts split_glb(const std::filesystem::path& path, std::string_view bytes, st
     throw IoError(path, "not a GLB file: wrong magic (expected 'glTF')");
   }
   const std::uint32_t version = read_u32(bytes, 4);
+  if (version == 1) throw IoError(path, "GLB version 1 is binary glTF 1.0, which is not supported (only glTF 2.0)");
   if (version != 2) throw IoError(path, "unsupported GLB version " + num(version) + " (only 2 is supported)");
   const std::uint32_t length = read_u32(bytes, 8);
   if (length > bytes.size()) {
@@ -322,6 +323,26 @@ struct StructureCheck {
   StructureCheck(const std::filesystem::path& p, const OrderedJson& r)
       : path(p), root(r), check(p, r), folder(p.parent_path()) {}
 
+  // asset.version first: a glTF 1.0 file fails every later check (its top-level properties are dictionaries),
+  // and the reason is the version, not those.
+  void check_version() const {
+    const auto asset = root.find("asset");
+    if (asset == root.end() || !asset->is_object()) check.fail("'asset' is missing (it holds the glTF version)");
+    const auto version = asset->find("version");
+    if (version == asset->end() || !version->is_string()) check.fail("asset.version is missing or not a string");
+    const std::string v = version->get<std::string>();
+    const std::string major = v.substr(0, v.find('.'));
+    if (major == "1" || major == "0") {
+      check.fail("glTF " + v + " is not supported, only glTF 2.0 (upgrade it first, e.g. with gltf-pipeline)");
+    }
+    if (major != "2") check.fail("asset.version \"" + v + "\": unsupported glTF version (only 2.0 is read)");
+    const auto min_version = asset->find("minVersion");
+    if (min_version != asset->end() && min_version->is_string() && min_version->get<std::string>() != "2.0") {
+      check.fail("asset.minVersion \"" + min_version->get<std::string>() + "\": the asset needs a newer glTF " +
+                 "reader than 2.0");
+    }
+  }
+
   void check_required_extensions() const {
     const auto it = root.find("extensionsRequired");
     if (it == root.end()) return;
@@ -488,6 +509,7 @@ struct StructureCheck {
 ExternalFiles check_structure(const std::filesystem::path& path, const OrderedJson& root, bool glb,
                               std::size_t glb_bin_size, const LoadOptions& options) {
   StructureCheck c(path, root);
+  c.check_version();
   c.check_required_extensions();
   c.check_buffers(glb, glb_bin_size);
   c.check_buffer_views();

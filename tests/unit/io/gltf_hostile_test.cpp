@@ -229,6 +229,33 @@ TEST(GltfHostile, NumberBeyondDoubleDeepInExtras) {
                   {"nodes[0].extras[\"odd key\"][1][2]", "out of range", "..."});
 }
 
+TEST(GltfHostile, GltfOneIsNotSupported) {
+  // A glTF 1.0 document: dictionaries where 2.0 has arrays. The version is the reason, not the first dictionary.
+  const fs::path dir = testing::temp_dir("gltf_hostile_version_one");
+  const json v1 = {{"asset", {{"version", "1.0"}}},
+                   {"scene", "defaultScene"},
+                   {"scenes", {{"defaultScene", {{"nodes", {"node_1"}}}}}},
+                   {"nodes", {{"node_1", {{"meshes", {"mesh_1"}}}}}},
+                   {"meshes", {{"mesh_1", {{"primitives", json::array()}}}}}};
+  expect_rejected(dir, write_bytes(dir / "v1.gltf", v1.dump()), {"glTF 1.0 is not supported", "only glTF 2.0"});
+  std::string glb = glb_of(glb_triangle_doc(triangle_bin()), triangle_bin());
+  glb[4] = 1;  // binary glTF 1.0 (KHR_binary_glTF) has version 1 in the GLB header
+  expect_rejected(dir, write_bytes(dir / "v1.glb", glb), {"GLB version 1", "glTF 1.0", "not supported"});
+}
+
+TEST(GltfHostile, AssetVersionMissingOrUnknown) {
+  const fs::path dir = testing::temp_dir("gltf_hostile_version");
+  json d = triangle_doc(triangle_bin());
+  d["asset"] = {{"generator", "hand"}};
+  expect_rejected(dir, write_bytes(dir / "none.gltf", d.dump()), {"asset.version is missing"});
+  d["asset"] = {{"version", "3.0"}};
+  expect_rejected(dir, write_bytes(dir / "three.gltf", d.dump()), {"asset.version \"3.0\"", "only 2.0"});
+  d["asset"] = {{"version", "2.0"}, {"minVersion", "2.1"}};
+  expect_rejected(dir, write_bytes(dir / "min.gltf", d.dump()), {"asset.minVersion \"2.1\""});
+  d["asset"] = {{"version", "2.1"}, {"minVersion", "2.0"}};  // a later 2.x that 2.0 readers can read
+  EXPECT_EQ(load_asset(write_bytes(dir / "later.gltf", d.dump())).meshes.size(), 1u);
+}
+
 TEST(GltfHostile, BufferUriOutsideTheFolder) {
   const fs::path dir = testing::temp_dir("gltf_hostile_traversal");
   fs::create_directories(dir / "asset");
