@@ -10,6 +10,7 @@
 // Spec: glTF 2.0 (Khronos), sections 3.6 (buffers, accessors, sparse accessors), 3.7.2 (meshes, primitive
 // modes: strip p_i = {v_i, v_{i+(1+i%2)}, v_{i+(2-i%2)}}, fan p_i = {v_{i+1}, v_{i+2}, v_0}), 4.4 (GLB).
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <climits>
 #include <cmath>
@@ -310,6 +311,38 @@ struct ExternalFiles {
   std::vector<std::string> image_uri;   // synthetic URI per image with a non-data URI
 };
 
+// Index properties of the core glTF 2.0 objects outside meshes, accessors, buffers and animations (checked in
+// their own passes), as data: where the property is and which top-level array it indexes. tinygltf keeps them
+// unchecked and the writer writes them through, so one out of range would reach every output.
+enum class RefKind {
+  index,         // "mesh": 0
+  list,          // "children": [1, 2]
+  texture_info,  // "normalTexture": {"index": 0, ...}; the index is required
+};
+struct Reference {
+  const char* from;                 // top-level array of the referring objects
+  std::array<const char*, 2> keys;  // the property's keys inside one object (the second nullptr if unused)
+  const char* to;                   // top-level array indexed
+  RefKind kind;
+};
+constexpr Reference kReferences[] = {
+    {"scenes", {"nodes", nullptr}, "nodes", RefKind::list},
+    {"nodes", {"mesh", nullptr}, "meshes", RefKind::index},
+    {"nodes", {"skin", nullptr}, "skins", RefKind::index},
+    {"nodes", {"camera", nullptr}, "cameras", RefKind::index},
+    {"nodes", {"children", nullptr}, "nodes", RefKind::list},
+    {"skins", {"joints", nullptr}, "nodes", RefKind::list},
+    {"skins", {"skeleton", nullptr}, "nodes", RefKind::index},
+    {"skins", {"inverseBindMatrices", nullptr}, "accessors", RefKind::index},
+    {"textures", {"source", nullptr}, "images", RefKind::index},
+    {"textures", {"sampler", nullptr}, "samplers", RefKind::index},
+    {"materials", {"pbrMetallicRoughness", "baseColorTexture"}, "textures", RefKind::texture_info},
+    {"materials", {"pbrMetallicRoughness", "metallicRoughnessTexture"}, "textures", RefKind::texture_info},
+    {"materials", {"normalTexture", nullptr}, "textures", RefKind::texture_info},
+    {"materials", {"occlusionTexture", nullptr}, "textures", RefKind::texture_info},
+    {"materials", {"emissiveTexture", nullptr}, "textures", RefKind::texture_info},
+};
+
 // Checks of the JSON before tinygltf parses it, one pass per top-level array; each throws IoError on the first
 // problem. Also collects the external files (resolved inside the asset's folder) tinygltf may read.
 struct StructureCheck {
@@ -470,6 +503,139 @@ struct StructureCheck {
     }
   }
 
+  // "<path> = 5 is out of range (meshes has 1)" unless `value` is an index into the array `to` of `limit` items.
+  void check_index(const OrderedJson& value, const std::string& path, const char* to, std::size_t limit) const {
+    if (!value.is_number_unsigned()) check.fail(path + " = " + value.dump() + " is not an index into " + to);
+    if (value.get<std::uint64_t>() >= limit) {
+      check.fail(path + " = " + value.dump() + " is out of range (" + to + " has " + num(limit) + ")");
+    }
+  }
+
+  void check_index_list(const OrderedJson& value, const std::string& path, const char* to, std::size_t limit) const {
+    if (!value.is_array()) check.fail(path + " is not an array");
+    for (std::size_t i = 0; i < value.size(); ++i) check_index(value[i], path + "[" + num(i) + "]", to, limit);
+  }
+
+  // Every index of kReferences, the default scene and the animations in range.
+  void check_references() const {
+    if (const auto scene = root.find("scene"); scene != root.end()) {
+      check_index(*scene, "scene", "scenes", check.objects("scenes").size());
+    }
+    for (const Reference& r : kReferences) {
+      const OrderedJson& objects = check.objects(r.from);
+      const std::size_t limit = check.objects(r.to).size();
+      for (std::size_t i = 0; i < objects.size(); ++i) {
+        std::string path = std::string(r.from) + "[" + num(i) + "]";
+        const OrderedJson* value = &objects[i];
+        for (const char* key : r.keys) {
+          if (!key || !value) break;
+          if (!value->is_object()) check.fail(path + " is not an object");
+          path += std::string(".") + key;
+          const auto it = value->find(key);
+          value = it == value->end() ? nullptr : &*it;
+        }
+        if (!value) continue;  // optional
+        switch (r.kind) {
+          case RefKind::index:
+            check_index(*value, path, r.to, limit);
+            break;
+          case RefKind::list:
+            check_index_list(*value, path, r.to, limit);
+            break;
+          case RefKind::texture_info: {
+            if (!value->is_object()) check.fail(path + " is not an object");
+            const auto index = value->find("index");
+            if (index == value->end()) check.fail(path + ".index is missing");
+            check_index(*index, path + ".index", r.to, limit);
+            break;
+          }
+        }
+      }
+    }
+    const OrderedJson& animations = check.objects("animations");
+    const std::size_t accessors = check.objects("accessors").size(), nodes = check.objects("nodes").size();
+    for (std::size_t a = 0; a < animations.size(); ++a) {
+      const std::string path = "animations[" + num(a) + "]";
+      const OrderedJson& anim = animations[a];
+      const auto samplers = anim.find("samplers");
+      const auto channels = anim.find("channels");
+      if (samplers == anim.end() || !samplers->is_array()) check.fail(path + ".samplers is missing or not an array");
+      if (channels == anim.end() || !channels->is_array()) check.fail(path + ".channels is missing or not an array");
+      for (std::size_t k = 0; k < samplers->size(); ++k) {
+        const OrderedJson& sampler = (*samplers)[k];
+        const std::string at = path + ".samplers[" + num(k) + "]";
+        if (!sampler.is_object()) check.fail(at + " is not an object");
+        for (const char* key : {"input", "output"}) {
+          const auto it = sampler.find(key);
+          if (it == sampler.end()) check.fail(at + "." + key + " is missing");
+          check_index(*it, at + "." + key, "accessors", accessors);
+        }
+      }
+      for (std::size_t k = 0; k < channels->size(); ++k) {
+        const OrderedJson& channel = (*channels)[k];
+        const std::string at = path + ".channels[" + num(k) + "]";
+        if (!channel.is_object()) check.fail(at + " is not an object");
+        const auto sampler = channel.find("sampler");
+        if (sampler == channel.end() || !sampler->is_number_unsigned() ||
+            sampler->get<std::uint64_t>() >= samplers->size()) {
+          check.fail(at + ".sampler is not an index into " + path + ".samplers (" + num(samplers->size()) + ")");
+        }
+        const auto target = channel.find("target");
+        if (target == channel.end() || !target->is_object()) check.fail(at + ".target is missing");
+        if (const auto node = target->find("node"); node != target->end()) {
+          check_index(*node, at + ".target.node", "nodes", nodes);
+        }
+      }
+    }
+  }
+
+  // The nodes form trees: no node is its own ancestor (a consumer walking the hierarchy would never stop).
+  // Depth-first with an explicit stack, so a deep hierarchy cannot overflow ours. Indices are checked already.
+  void check_node_cycles() const {
+    const OrderedJson& nodes = check.objects("nodes");
+    enum class Mark : char { unseen, on_path, done };
+    std::vector<Mark> mark(nodes.size(), Mark::unseen);
+    struct Step {
+      std::size_t node;
+      std::size_t next_child;
+    };
+    std::vector<Step> path;
+    auto children = [&nodes](std::size_t n) -> const OrderedJson* {
+      const auto it = nodes[n].find("children");
+      return it == nodes[n].end() ? nullptr : &*it;
+    };
+    for (std::size_t start = 0; start < nodes.size(); ++start) {
+      if (mark[start] != Mark::unseen) continue;
+      mark[start] = Mark::on_path;
+      path.push_back({start, 0});
+      while (!path.empty()) {
+        Step& top = path.back();
+        const OrderedJson* list = children(top.node);
+        if (!list || top.next_child == list->size()) {
+          mark[top.node] = Mark::done;
+          path.pop_back();
+          continue;
+        }
+        const std::size_t slot = top.next_child++;
+        const auto child = static_cast<std::size_t>((*list)[slot].get<std::uint64_t>());
+        if (mark[child] == Mark::on_path) {
+          std::string cycle;
+          bool in_cycle = false;
+          for (const Step& s : path) {
+            in_cycle = in_cycle || s.node == child;
+            if (in_cycle) cycle += "nodes[" + num(s.node) + "] -> ";
+          }
+          check.fail("the node hierarchy has a cycle: " + cycle + "nodes[" + num(child) + "] (nodes[" + num(top.node) +
+                     "].children[" + num(slot) + "])");
+        }
+        if (mark[child] == Mark::unseen) {
+          mark[child] = Mark::on_path;
+          path.push_back({child, 0});
+        }
+      }
+    }
+  }
+
   // Meshes: attribute, index and target accessors exist; modes are known; no compression extensions.
   void check_meshes() const {
     const OrderedJson& accessors = check.objects("accessors");
@@ -516,6 +682,8 @@ ExternalFiles check_structure(const std::filesystem::path& path, const OrderedJs
   c.check_accessors(options);
   c.check_images();
   c.check_meshes();
+  c.check_references();
+  c.check_node_cycles();
   return std::move(c.files);
 }
 

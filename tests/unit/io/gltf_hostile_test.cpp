@@ -256,6 +256,79 @@ TEST(GltfHostile, AssetVersionMissingOrUnknown) {
   EXPECT_EQ(load_asset(write_bytes(dir / "later.gltf", d.dump())).meshes.size(), 1u);
 }
 
+// The triangle document with a second node, a skin, a camera, a texture on a material and an animation, every
+// reference in range.
+json referencing_doc() {
+  json d = triangle_doc(triangle_bin());
+  d["scene"] = 0;
+  d["nodes"] = {{{"mesh", 0}, {"children", {1}}, {"skin", 0}}, {{"camera", 0}}};
+  d["skins"] = {{{"joints", {1}}, {"skeleton", 1}}};
+  d["cameras"] = {{{"type", "perspective"}, {"perspective", {{"yfov", 1.0}, {"znear", 0.1}}}}};
+  d["images"] = {{{"uri", "missing.png"}}};
+  d["samplers"] = json::array({json::object()});
+  d["textures"] = {{{"source", 0}, {"sampler", 0}}};
+  d["materials"] = {
+      {{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}, {"normalTexture", {{"index", 0}}}}};
+  d["meshes"][0]["primitives"][0]["material"] = 0;
+  const json sampler = {{"input", 1}, {"output", 0}};
+  const json channel = {{"sampler", 0}, {"target", {{"node", 1}, {"path", "translation"}}}};
+  d["animations"] = json::array({{{"samplers", json::array({sampler})}, {"channels", json::array({channel})}}});
+  return d;
+}
+
+TEST(GltfHostile, ReferencesInRangeLoad) {
+  const fs::path dir = testing::temp_dir("gltf_hostile_references_ok");
+  const Asset a = load_asset(write_bytes(dir / "t.gltf", referencing_doc().dump()));
+  EXPECT_EQ(a.meshes.at(0).face_count(), 1u);
+}
+
+TEST(GltfHostile, ReferenceOutOfRange) {
+  // Each was accepted and written through to every output; each is refused with its JSON path.
+  struct Case {
+    const char* pointer;  // JSON pointer of the property set to `value`
+    json value;
+    const char* message;
+  };
+  const Case cases[] = {
+      {"/nodes/0/mesh", 5, "nodes[0].mesh = 5 is out of range (meshes has 1)"},
+      {"/scenes/0/nodes", {9}, "scenes[0].nodes[0] = 9 is out of range (nodes has 2)"},
+      {"/scene", 3, "scene = 3 is out of range (scenes has 1)"},
+      {"/nodes/0/children", {1, 7}, "nodes[0].children[1] = 7 is out of range (nodes has 2)"},
+      {"/nodes/0/skin", 1, "nodes[0].skin = 1 is out of range (skins has 1)"},
+      {"/nodes/1/camera", -1, "nodes[1].camera = -1 is not an index into cameras"},
+      {"/skins/0/joints", {0, 2}, "skins[0].joints[1] = 2 is out of range (nodes has 2)"},
+      {"/textures/0/source", 4, "textures[0].source = 4 is out of range (images has 1)"},
+      {"/materials/0/pbrMetallicRoughness/baseColorTexture/index", 1,
+       "materials[0].pbrMetallicRoughness.baseColorTexture.index = 1 is out of range (textures has 1)"},
+      {"/materials/0/normalTexture", {{"scale", 1}}, "materials[0].normalTexture.index is missing"},
+      {"/animations/0/channels/0/target/node", 2,
+       "animations[0].channels[0].target.node = 2 is out of range (nodes has 2)"},
+      {"/animations/0/channels/0/sampler", 1, "animations[0].channels[0].sampler is not an index into"},
+      {"/animations/0/samplers/0/output", 2, "animations[0].samplers[0].output = 2 is out of range (accessors has 2)"},
+  };
+  const fs::path dir = testing::temp_dir("gltf_hostile_references");
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.pointer);
+    json d = referencing_doc();
+    d[json::json_pointer(c.pointer)] = c.value;
+    expect_rejected(dir, write_bytes(dir / "t.gltf", d.dump()), {c.message});
+  }
+}
+
+TEST(GltfHostile, NodeCycle) {
+  const fs::path dir = testing::temp_dir("gltf_hostile_node_cycle");
+  json d = triangle_doc(triangle_bin());
+  d["nodes"] = {{{"mesh", 0}, {"children", {1}}}, {{"children", {2}}}, {{"children", {3}}}, {{"children", {1}}}};
+  expect_rejected(dir, write_bytes(dir / "t.gltf", d.dump()),
+                  {"node hierarchy has a cycle: nodes[1] -> nodes[2] -> nodes[3] -> nodes[1]", "nodes[3].children[0]"});
+  d["nodes"] = {{{"mesh", 0}, {"children", {0}}}};
+  expect_rejected(dir, write_bytes(dir / "self.gltf", d.dump()), {"cycle: nodes[0] -> nodes[0]"});
+  d["nodes"] = json::array();  // a deep chain is not a cycle, and must not overflow the stack
+  for (int i = 0; i < 100000; ++i) d["nodes"].push_back({{"children", {i + 1}}});
+  d["nodes"].push_back({{"mesh", 0}});
+  EXPECT_EQ(load_asset(write_bytes(dir / "deep.gltf", d.dump())).meshes.size(), 1u);
+}
+
 TEST(GltfHostile, BufferUriOutsideTheFolder) {
   const fs::path dir = testing::temp_dir("gltf_hostile_traversal");
   fs::create_directories(dir / "asset");
