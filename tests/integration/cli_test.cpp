@@ -64,6 +64,30 @@ TEST(Cli, ConvertOfBadInputWritesNothing) {
   EXPECT_TRUE(no_temporaries(dir));
 }
 
+TEST(Cli, OutputThatIsAFolderIsRefusedBeforeAnythingIsWritten) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_output_folder");
+  write_text(dir / "t.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  write_text(dir / "t.gltf", triangle_gltf("[1, 1, 0]"));
+  for (const char* name : {"out.glb", "out.gltf", "out.obj", "out.ply"}) {
+    fs::create_directories(dir / name);
+    for (const char* in : {"t.obj", "t.gltf"}) {
+      for (const char* command : {"convert", "simplify"}) {
+        const std::string args = std::string(command) + " " + (dir / in).string() + " " + (dir / name).string();
+        const CliRun r = run_cli(args);
+        EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
+        EXPECT_NE(r.output.find("error: " + (dir / name).string() +
+                                ": is an existing folder; the output must be a file name\n"),
+                  std::string::npos)
+            << args << "\n"
+            << r.output;
+        EXPECT_TRUE(fs::is_empty(dir / name)) << args;
+      }
+    }
+  }
+  EXPECT_FALSE(fs::exists(dir / "out.bin")) << "a .gltf output must not leave its buffer behind";
+  EXPECT_TRUE(no_temporaries(dir));
+}
+
 TEST(Cli, ConvertEmptyAndWrongMagicGlbExitTwo) {
   const fs::path dir = lodforge::testing::temp_dir("cli_bad_glb");
   write_text(dir / "empty.glb", "");
