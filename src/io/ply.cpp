@@ -82,6 +82,16 @@ struct Header {
   std::size_t data_line = 0;    // line number of the first data line (ASCII error messages)
 };
 
+// Header lines that old exporters wrote without the "comment" keyword, read as comments.
+constexpr std::string_view kBareComments[] = {
+    "Created by Blender3D",  // Blender's exporter up to 2.47 (the keyword was added in August 2008)
+};
+
+bool is_bare_comment(std::string_view line) {
+  return std::any_of(std::begin(kBareComments), std::end(kBareComments),
+                     [&](std::string_view prefix) { return line.substr(0, prefix.size()) == prefix; });
+}
+
 Header parse_header(const std::filesystem::path& path, std::string_view bytes) {
   Header h;
   parse::LineCursor lines(bytes);
@@ -94,7 +104,9 @@ Header parse_header(const std::filesystem::path& path, std::string_view bytes) {
     ctx.line = lines.line_number();
     std::string_view rest = line;
     const std::string_view keyword = parse::next_token(rest);
-    if (keyword.empty() || keyword == "comment" || keyword == "obj_info") continue;
+    if (keyword.empty() || keyword == "comment" || keyword == "obj_info" || is_bare_comment(parse::trim(line))) {
+      continue;
+    }
     if (keyword == "end_header") break;
     if (keyword == "format") {
       const std::string_view enc = parse::next_token(rest);

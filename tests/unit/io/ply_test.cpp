@@ -22,6 +22,7 @@ std::string first_difference(const Mesh& a, const Mesh& b);
 std::string structural_problems(const Mesh& m);
 Asset save_and_reload(const Asset& asset, const std::string& file_name);
 void expect_corpus_round_trip(const std::filesystem::path& file, const std::string& relative);
+std::string blender_247_ply();
 
 namespace {
 
@@ -152,6 +153,24 @@ TEST(Ply, AcceptsAlternativePropertyNamesAndTypes) {
   EXPECT_EQ(m.formats.at("COLOR_0").component_type, 5126);
   ASSERT_EQ(a.warnings.size(), 1u);
   EXPECT_NE(a.warnings[0].find("double"), std::string::npos);
+}
+
+TEST(Ply, ReadsWhatBlender247Wrote) {
+  // Its comment line lacks the "comment" keyword; it was refused as an unknown header line.
+  const Mesh m = read(blender_247_ply());
+  ASSERT_EQ(m.face_count(), 1u);
+  EXPECT_EQ(m.face_size(0), 4u);
+  EXPECT_EQ(m.positions[2], (Vec3f{{-1, -1, 0}}));
+  EXPECT_EQ(m.normals[0], (Vec3f{{0, 0, 1}}));
+  EXPECT_EQ(m.uvs[0][1], (Vec2f{{0, 1}}));
+  EXPECT_EQ(m.colors[0][3], (Vec4f{{0, 0, 1, 1}}));
+}
+
+TEST(Ply, EmptyAndBlankHeaderLinesAreSkipped) {
+  const std::string text =
+      "ply\nformat ascii 1.0\n\n \t\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\r\n"
+      "element face 1\nproperty list uchar int vertex_indices\n\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+  EXPECT_EQ(read(text).face_count(), 1u);
 }
 
 TEST(Ply, FaceElementBeforeVertexElementIsFine) {
