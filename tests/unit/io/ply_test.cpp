@@ -299,6 +299,23 @@ TEST(PlyHostile, MalformedAsciiNumber) {
                "end_header\n0 1.5.2 0\n",
                "line 8: malformed number '1.5.2' in vertex 0");
 }
+TEST(PlyHostile, ListWhereAScalarIsExpected) {
+  // A header that says "list" for a vertex attribute the reader takes as one number: refused as such, not as
+  // the "malformed number" its scalar data would give.
+  const std::string header =
+      "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+      "property list uchar float nx\nproperty float ny\nproperty float nz\nend_header\n";
+  EXPECT_ERROR(header + "0 0 0 0.577 0.577 0.577\n",
+               "vertex property 'nx' is declared as a list where a scalar is expected");
+  std::string binary = header;
+  binary.replace(binary.find("ascii"), 5, "binary_little_endian");
+  EXPECT_ERROR(binary + std::string(24, '\0'), "vertex property 'nx' is declared as a list where a scalar is expected");
+}
+TEST(PlyHostile, ListCountThatIsNotAnInteger) {
+  EXPECT_ERROR("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+               "property list uchar float quality\nend_header\n0 0 0 0.5\n",
+               "line 9: list property 'quality' of vertex 0: the count '0.5' is not an integer");
+}
 TEST(PlyHostile, FaceWithTwoVertices) {
   std::string bytes = kTriangleHeader + triangle_body();
   bytes[kTriangleHeader.size() + 36] = char(2);
