@@ -840,24 +840,52 @@ std::string lod_file_name(const fs::path& relative_path, std::size_t level) {
   return relative_path.stem().string() + "_LOD" + std::to_string(level) + relative_path.extension().string();
 }
 
-std::vector<std::string> scan_library(const fs::path& input_dir) {
+LibraryScan scan_library(const fs::path& input_dir) {
   std::error_code ec;
   if (!fs::is_directory(input_dir, ec)) throw io::IoError(input_dir, "is not a folder");
-  std::vector<std::string> out;
+  LibraryScan out;
+  auto skip = [&out](const fs::path& entry, const std::string& why) {
+    out.skipped.push_back(entry.string() + ": skipped: " + why);
+  };
   const auto options = fs::directory_options::skip_permission_denied;
   for (auto it = fs::recursive_directory_iterator(input_dir, options, ec);
        !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
-    // The cache and outputs of a run into a folder inside the library are not assets.
-    if (it->is_directory() && it->path().filename() == kCacheFolder) {
-      it.disable_recursion_pending();
+    // Status through symbolic links; the error_code form, as a link loop or an unreadable entry must not end
+    // the scan.
+    std::error_code status_ec;
+    const fs::file_type type = it->status(status_ec).type();
+    if (type == fs::file_type::not_found) {
+      if (supported(it->path())) skip(it->path(), "broken symbolic link");
       continue;
     }
-    if (it->is_regular_file() && supported(it->path())) {
-      out.push_back(fs::relative(it->path(), input_dir).generic_string());
+    if (status_ec) {
+      skip(it->path(),
+           status_ec == std::errc::too_many_symbolic_link_levels ? "symbolic link loop" : status_ec.message());
+      continue;
+    }
+    if (type == fs::file_type::directory) {
+      // The cache and outputs of a run into a folder inside the library are not assets.
+      if (it->path().filename() == kCacheFolder) {
+        it.disable_recursion_pending();
+        continue;
+      }
+      // The iterator passes over a folder it cannot open without a word (skip_permission_denied); linked
+      // folders are not entered at all.
+      std::error_code open_ec;
+      if (it->is_symlink(open_ec)) continue;
+      const fs::directory_iterator probe(it->path(), open_ec);
+      if (open_ec) skip(it->path(), "cannot open the folder: " + open_ec.message());
+      continue;
+    }
+    // Lexically: fs::relative would resolve a linked file to its target's path (a duplicate, or "../x.obj",
+    // whose LODs would be written outside the output folder).
+    if (type == fs::file_type::regular && supported(it->path())) {
+      out.assets.push_back(it->path().lexically_relative(input_dir).generic_string());
     }
   }
   if (ec) throw io::IoError(input_dir, "cannot list the folder: " + ec.message());
-  std::sort(out.begin(), out.end());
+  std::sort(out.assets.begin(), out.assets.end());
+  std::sort(out.skipped.begin(), out.skipped.end());
   return out;
 }
 
@@ -871,7 +899,8 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
   const std::string report_stem = options.shard ? "report.shard-" + tag : "report";
 
   // Scan (sorted), shard, classify.
-  const std::vector<std::string> all = scan_library(options.input_dir);
+  LibraryScan scan = scan_library(options.input_dir);
+  const std::vector<std::string>& all = scan.assets;
   std::error_code ec;
   // An output folder inside the library is not part of it (its LODs would be assets of the next run).
   std::string output_prefix;
@@ -907,6 +936,7 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
   }
 
   RunResult result;
+  result.warnings = std::move(scan.skipped);
   // One asset in flight per thread. Extra ones would wait as spawned tasks, and TBB runs the newest task
   // first, so they would sit (holding their memory budget) until the end of the run.
   // The assets' budget is the limit less what the process holds already (code, libraries, the library's path

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "lodforge/batch/runner.hpp"
 #include "lodforge/core/topology.hpp"
 #include "lodforge/core/validate.hpp"
 #include "lodforge/eval/attribute_eval.hpp"
@@ -27,28 +28,17 @@ double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-bool is_supported(const std::filesystem::path& p) {
-  try {
-    io::format_from_path(p);
-    return true;
-  } catch (const io::IoError&) {
-    return false;
-  }
-}
-
-// Expands folders into the supported files below them (sorted, so output order is stable).
+// Expands folders into the supported files below them as `run` finds them (sorted, so output order is stable);
+// entries that cannot be read (a symbolic link loop) are skipped with a warning on stderr.
 std::vector<std::filesystem::path> expand_inputs(const std::vector<std::string>& inputs) {
   std::vector<std::filesystem::path> out;
   for (const std::string& in : inputs) {
     const std::filesystem::path p(in);
     std::error_code ec;
     if (std::filesystem::is_directory(p, ec)) {
-      std::vector<std::filesystem::path> found;
-      for (const auto& e : std::filesystem::recursive_directory_iterator(p, ec)) {
-        if (e.is_regular_file() && is_supported(e.path())) found.push_back(e.path());
-      }
-      std::sort(found.begin(), found.end());
-      out.insert(out.end(), found.begin(), found.end());
+      const batch::LibraryScan scan = batch::scan_library(p);
+      for (const std::string& w : scan.skipped) std::fprintf(stderr, "warning: %s\n", w.c_str());
+      for (const std::string& rel : scan.assets) out.push_back(p / rel);
     } else {
       out.push_back(p);
     }
@@ -122,7 +112,14 @@ void register_info(CLI::App& app) {
   cmd->add_option("inputs", *inputs, "asset files or folders (.gltf .glb .obj .ply .off .stl)")->required();
   cmd->callback([inputs] {
     std::size_t ok = 0, failed = 0, triangles = 0;
-    const auto files = expand_inputs(*inputs);
+    std::vector<std::filesystem::path> files;
+    try {
+      files = expand_inputs(*inputs);
+    } catch (const io::IoError& e) {
+      std::fprintf(stderr, "error: %s\n", e.what());
+      set_exit_code(2);
+      return;
+    }
     if (files.empty()) {
       std::fprintf(stderr, "error: no supported asset files found\n");
       set_exit_code(2);

@@ -9,14 +9,27 @@
 //   130  `run` stopped by Ctrl-C or SIGTERM (assets in flight finished, report written; a re-run resumes)
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <new>
 #include <string>
 #include <vector>
 
 #include "commands.hpp"
+
+namespace {
+
+// One line on stderr, whatever the exception's text holds.
+void internal_error(std::string what) {
+  std::replace(what.begin(), what.end(), '\n', ' ');
+  std::fflush(stdout);
+  std::fprintf(stderr, "internal error: %s\n", what.c_str());
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{
@@ -42,6 +55,17 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     const int rc = app.exit(e);
     return rc == 0 ? 0 : 2;
+  } catch (const std::bad_alloc&) {
+    internal_error("out of memory");
+    return 3;
+  } catch (const std::exception& e) {
+    // Commands catch bad input where they read it (exit 2); whatever else escapes is ours. Outputs are written
+    // atomically, so nothing half-written is left.
+    internal_error(e.what());
+    return 3;
+  } catch (...) {
+    internal_error("unknown exception");
+    return 3;
   }
   return lodforge::cli::exit_code();
 }

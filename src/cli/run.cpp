@@ -196,6 +196,7 @@ void run_command(const RunArgs& a) {
   std::signal(SIGINT, SIG_DFL);
   std::signal(SIGTERM, SIG_DFL);
   progress.finish();
+  for (const std::string& w : r.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
   print_summary(r);
   if (!r.failures.empty()) {
     std::fprintf(stderr, "%zu asset(s) failed:\n", r.failures.size());

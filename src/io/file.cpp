@@ -31,7 +31,15 @@ std::string read_file(const std::filesystem::path& path) {
   return bytes;
 }
 
+void check_output_path(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) {
+    throw IoError(path, "is an existing folder; the output must be a file name");
+  }
+}
+
 void write_file_atomic(const std::filesystem::path& path, std::string_view bytes) {
+  check_output_path(path);
   static std::atomic<unsigned> counter{0};
   const std::filesystem::path tmp =
       path.string() + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(counter++);
@@ -48,8 +56,9 @@ void write_file_atomic(const std::filesystem::path& path, std::string_view bytes
   }
   std::filesystem::rename(tmp, path, ec);
   if (ec) {
+    const std::string why = ec.message();  // before remove() reuses ec
     std::filesystem::remove(tmp, ec);
-    throw IoError(path, "cannot rename the temporary file into place: " + ec.message());
+    throw IoError(path, "cannot rename the temporary file into place: " + why);
   }
 }
 

@@ -10,6 +10,7 @@
 // Spec: glTF 2.0 (Khronos), sections 3.6 (buffers, accessors, sparse accessors), 3.7.2 (meshes, primitive
 // modes: strip p_i = {v_i, v_{i+(1+i%2)}, v_{i+(2-i%2)}}, fan p_i = {v_{i+1}, v_{i+2}, v_0}), 4.4 (GLB).
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <climits>
 #include <cmath>
@@ -72,6 +73,7 @@ GlbParts split_glb(const std::filesystem::path& path, std::string_view bytes, st
     throw IoError(path, "not a GLB file: wrong magic (expected 'glTF')");
   }
   const std::uint32_t version = read_u32(bytes, 4);
+  if (version == 1) throw IoError(path, "GLB version 1 is binary glTF 1.0, which is not supported (only glTF 2.0)");
   if (version != 2) throw IoError(path, "unsupported GLB version " + num(version) + " (only 2 is supported)");
   const std::uint32_t length = read_u32(bytes, 8);
   if (length > bytes.size()) {
@@ -136,6 +138,73 @@ void check_json_depth(const std::filesystem::path& path, std::string_view text) 
   }
 }
 
+// nlohmann's message without its "[json.exception.parse_error.101] " prefix.
+std::string json_reason(const nlohmann::json::exception& e) {
+  std::string what = e.what();
+  if (const auto close = what.find("] "); what.rfind("[json.exception", 0) == 0 && close != std::string::npos) {
+    what.erase(0, close + 2);
+  }
+  return what;
+}
+
+// "accessors[0].max" for plain keys, extras["odd key"] otherwise.
+std::string json_child(const std::string& path, const std::string& key) {
+  const bool plain = !key.empty() && std::all_of(key.begin(), key.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_';
+  });
+  if (!plain) return path + "[" + OrderedJson(key).dump() + "]";
+  return path.empty() ? key : path + "." + key;
+}
+
+// The JSON path of the value the parser stopped at ("accessors[0].max[0]"), found by parsing `text` again with
+// a callback that follows keys and array positions: nlohmann's number-overflow error names no position.
+std::string json_path_of_failure(std::string_view text) {
+  struct Frame {
+    bool array = false;
+    std::string key;        // objects: the key of the value being parsed
+    std::size_t count = 0;  // arrays: values begun so far (a container counts when it opens, a scalar when parsed)
+  };
+  std::vector<Frame> frames;
+  using Event = nlohmann::json::parse_event_t;
+  const auto follow = [&frames](int, Event event, OrderedJson& parsed) {
+    switch (event) {
+      case Event::object_start:
+      case Event::array_start:
+        if (!frames.empty() && frames.back().array) ++frames.back().count;
+        frames.push_back({.array = event == Event::array_start, .key = {}, .count = 0});
+        break;
+      case Event::key:
+        frames.back().key = parsed.get<std::string>();
+        break;
+      case Event::object_end:
+      case Event::array_end:
+        frames.pop_back();
+        break;
+      case Event::value:
+        if (!frames.empty() && frames.back().array) ++frames.back().count;
+        break;
+    }
+    return true;
+  };
+  try {
+    [[maybe_unused]] const OrderedJson whole = OrderedJson::parse(text.begin(), text.end(), follow);
+  } catch (const nlohmann::json::exception&) {
+    // expected: the frames now lead to the failing value
+  }
+  std::string path;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    const Frame& f = frames[i];
+    if (!f.array) {
+      path = json_child(path, f.key);
+    } else {
+      // The failing value is a scalar not yet counted; an enclosing array counted its open child already.
+      const std::size_t index = i + 1 == frames.size() ? f.count : f.count - 1;
+      path += "[" + std::to_string(index) + "]";
+    }
+  }
+  return path.empty() ? "the top level" : path;
+}
+
 OrderedJson parse_json(const std::filesystem::path& path, std::string_view text) {
   check_json_depth(path, text);
   try {
@@ -143,11 +212,15 @@ OrderedJson parse_json(const std::filesystem::path& path, std::string_view text)
     if (!j.is_object()) throw IoError(path, "the glTF JSON is not an object");
     return j;
   } catch (const nlohmann::json::parse_error& e) {
-    std::string what = e.what();
-    if (const auto close = what.find("] "); what.rfind("[json.exception", 0) == 0 && close != std::string::npos) {
-      what.erase(0, close + 2);  // drop nlohmann's "[json.exception.parse_error.101] " prefix
-    }
-    throw IoError(path, "JSON syntax error: " + what);
+    throw IoError(path, "JSON syntax error: " + json_reason(e));
+  } catch (const nlohmann::json::out_of_range& e) {
+    // The one out_of_range a parse throws: a number beyond double (1e999), which the JSON grammar allows.
+    std::string token = json_reason(e);
+    if (const auto open = token.find('\''); open != std::string::npos) token.erase(0, open);
+    if (token.size() > 34) token = token.substr(0, 30) + "...'";
+    throw IoError(path, json_path_of_failure(text) + ": number " + token + " is out of range (too large for a double)");
+  } catch (const nlohmann::json::exception& e) {
+    throw IoError(path, "invalid JSON: " + json_reason(e));
   }
 }
 
@@ -238,6 +311,38 @@ struct ExternalFiles {
   std::vector<std::string> image_uri;   // synthetic URI per image with a non-data URI
 };
 
+// Index properties of the core glTF 2.0 objects outside meshes, accessors, buffers and animations (checked in
+// their own passes), as data: where the property is and which top-level array it indexes. tinygltf keeps them
+// unchecked and the writer writes them through, so one out of range would reach every output.
+enum class RefKind {
+  index,         // "mesh": 0
+  list,          // "children": [1, 2]
+  texture_info,  // "normalTexture": {"index": 0, ...}; the index is required
+};
+struct Reference {
+  const char* from;                 // top-level array of the referring objects
+  std::array<const char*, 2> keys;  // the property's keys inside one object (the second nullptr if unused)
+  const char* to;                   // top-level array indexed
+  RefKind kind;
+};
+constexpr Reference kReferences[] = {
+    {"scenes", {"nodes", nullptr}, "nodes", RefKind::list},
+    {"nodes", {"mesh", nullptr}, "meshes", RefKind::index},
+    {"nodes", {"skin", nullptr}, "skins", RefKind::index},
+    {"nodes", {"camera", nullptr}, "cameras", RefKind::index},
+    {"nodes", {"children", nullptr}, "nodes", RefKind::list},
+    {"skins", {"joints", nullptr}, "nodes", RefKind::list},
+    {"skins", {"skeleton", nullptr}, "nodes", RefKind::index},
+    {"skins", {"inverseBindMatrices", nullptr}, "accessors", RefKind::index},
+    {"textures", {"source", nullptr}, "images", RefKind::index},
+    {"textures", {"sampler", nullptr}, "samplers", RefKind::index},
+    {"materials", {"pbrMetallicRoughness", "baseColorTexture"}, "textures", RefKind::texture_info},
+    {"materials", {"pbrMetallicRoughness", "metallicRoughnessTexture"}, "textures", RefKind::texture_info},
+    {"materials", {"normalTexture", nullptr}, "textures", RefKind::texture_info},
+    {"materials", {"occlusionTexture", nullptr}, "textures", RefKind::texture_info},
+    {"materials", {"emissiveTexture", nullptr}, "textures", RefKind::texture_info},
+};
+
 // Checks of the JSON before tinygltf parses it, one pass per top-level array; each throws IoError on the first
 // problem. Also collects the external files (resolved inside the asset's folder) tinygltf may read.
 struct StructureCheck {
@@ -250,6 +355,26 @@ struct StructureCheck {
 
   StructureCheck(const std::filesystem::path& p, const OrderedJson& r)
       : path(p), root(r), check(p, r), folder(p.parent_path()) {}
+
+  // asset.version first: a glTF 1.0 file fails every later check (its top-level properties are dictionaries),
+  // and the reason is the version, not those.
+  void check_version() const {
+    const auto asset = root.find("asset");
+    if (asset == root.end() || !asset->is_object()) check.fail("'asset' is missing (it holds the glTF version)");
+    const auto version = asset->find("version");
+    if (version == asset->end() || !version->is_string()) check.fail("asset.version is missing or not a string");
+    const std::string v = version->get<std::string>();
+    const std::string major = v.substr(0, v.find('.'));
+    if (major == "1" || major == "0") {
+      check.fail("glTF " + v + " is not supported, only glTF 2.0 (upgrade it first, e.g. with gltf-pipeline)");
+    }
+    if (major != "2") check.fail("asset.version \"" + v + "\": unsupported glTF version (only 2.0 is read)");
+    const auto min_version = asset->find("minVersion");
+    if (min_version != asset->end() && min_version->is_string() && min_version->get<std::string>() != "2.0") {
+      check.fail("asset.minVersion \"" + min_version->get<std::string>() + "\": the asset needs a newer glTF " +
+                 "reader than 2.0");
+    }
+  }
 
   void check_required_extensions() const {
     const auto it = root.find("extensionsRequired");
@@ -378,6 +503,139 @@ struct StructureCheck {
     }
   }
 
+  // "<path> = 5 is out of range (meshes has 1)" unless `value` is an index into the array `to` of `limit` items.
+  void check_index(const OrderedJson& value, const std::string& path, const char* to, std::size_t limit) const {
+    if (!value.is_number_unsigned()) check.fail(path + " = " + value.dump() + " is not an index into " + to);
+    if (value.get<std::uint64_t>() >= limit) {
+      check.fail(path + " = " + value.dump() + " is out of range (" + to + " has " + num(limit) + ")");
+    }
+  }
+
+  void check_index_list(const OrderedJson& value, const std::string& path, const char* to, std::size_t limit) const {
+    if (!value.is_array()) check.fail(path + " is not an array");
+    for (std::size_t i = 0; i < value.size(); ++i) check_index(value[i], path + "[" + num(i) + "]", to, limit);
+  }
+
+  // Every index of kReferences, the default scene and the animations in range.
+  void check_references() const {
+    if (const auto scene = root.find("scene"); scene != root.end()) {
+      check_index(*scene, "scene", "scenes", check.objects("scenes").size());
+    }
+    for (const Reference& r : kReferences) {
+      const OrderedJson& objects = check.objects(r.from);
+      const std::size_t limit = check.objects(r.to).size();
+      for (std::size_t i = 0; i < objects.size(); ++i) {
+        std::string path = std::string(r.from) + "[" + num(i) + "]";
+        const OrderedJson* value = &objects[i];
+        for (const char* key : r.keys) {
+          if (!key || !value) break;
+          if (!value->is_object()) check.fail(path + " is not an object");
+          path += std::string(".") + key;
+          const auto it = value->find(key);
+          value = it == value->end() ? nullptr : &*it;
+        }
+        if (!value) continue;  // optional
+        switch (r.kind) {
+          case RefKind::index:
+            check_index(*value, path, r.to, limit);
+            break;
+          case RefKind::list:
+            check_index_list(*value, path, r.to, limit);
+            break;
+          case RefKind::texture_info: {
+            if (!value->is_object()) check.fail(path + " is not an object");
+            const auto index = value->find("index");
+            if (index == value->end()) check.fail(path + ".index is missing");
+            check_index(*index, path + ".index", r.to, limit);
+            break;
+          }
+        }
+      }
+    }
+    const OrderedJson& animations = check.objects("animations");
+    const std::size_t accessors = check.objects("accessors").size(), nodes = check.objects("nodes").size();
+    for (std::size_t a = 0; a < animations.size(); ++a) {
+      const std::string path = "animations[" + num(a) + "]";
+      const OrderedJson& anim = animations[a];
+      const auto samplers = anim.find("samplers");
+      const auto channels = anim.find("channels");
+      if (samplers == anim.end() || !samplers->is_array()) check.fail(path + ".samplers is missing or not an array");
+      if (channels == anim.end() || !channels->is_array()) check.fail(path + ".channels is missing or not an array");
+      for (std::size_t k = 0; k < samplers->size(); ++k) {
+        const OrderedJson& sampler = (*samplers)[k];
+        const std::string at = path + ".samplers[" + num(k) + "]";
+        if (!sampler.is_object()) check.fail(at + " is not an object");
+        for (const char* key : {"input", "output"}) {
+          const auto it = sampler.find(key);
+          if (it == sampler.end()) check.fail(at + "." + key + " is missing");
+          check_index(*it, at + "." + key, "accessors", accessors);
+        }
+      }
+      for (std::size_t k = 0; k < channels->size(); ++k) {
+        const OrderedJson& channel = (*channels)[k];
+        const std::string at = path + ".channels[" + num(k) + "]";
+        if (!channel.is_object()) check.fail(at + " is not an object");
+        const auto sampler = channel.find("sampler");
+        if (sampler == channel.end() || !sampler->is_number_unsigned() ||
+            sampler->get<std::uint64_t>() >= samplers->size()) {
+          check.fail(at + ".sampler is not an index into " + path + ".samplers (" + num(samplers->size()) + ")");
+        }
+        const auto target = channel.find("target");
+        if (target == channel.end() || !target->is_object()) check.fail(at + ".target is missing");
+        if (const auto node = target->find("node"); node != target->end()) {
+          check_index(*node, at + ".target.node", "nodes", nodes);
+        }
+      }
+    }
+  }
+
+  // The nodes form trees: no node is its own ancestor (a consumer walking the hierarchy would never stop).
+  // Depth-first with an explicit stack, so a deep hierarchy cannot overflow ours. Indices are checked already.
+  void check_node_cycles() const {
+    const OrderedJson& nodes = check.objects("nodes");
+    enum class Mark : char { unseen, on_path, done };
+    std::vector<Mark> mark(nodes.size(), Mark::unseen);
+    struct Step {
+      std::size_t node;
+      std::size_t next_child;
+    };
+    std::vector<Step> path;
+    auto children = [&nodes](std::size_t n) -> const OrderedJson* {
+      const auto it = nodes[n].find("children");
+      return it == nodes[n].end() ? nullptr : &*it;
+    };
+    for (std::size_t start = 0; start < nodes.size(); ++start) {
+      if (mark[start] != Mark::unseen) continue;
+      mark[start] = Mark::on_path;
+      path.push_back({start, 0});
+      while (!path.empty()) {
+        Step& top = path.back();
+        const OrderedJson* list = children(top.node);
+        if (!list || top.next_child == list->size()) {
+          mark[top.node] = Mark::done;
+          path.pop_back();
+          continue;
+        }
+        const std::size_t slot = top.next_child++;
+        const auto child = static_cast<std::size_t>((*list)[slot].get<std::uint64_t>());
+        if (mark[child] == Mark::on_path) {
+          std::string cycle;
+          bool in_cycle = false;
+          for (const Step& s : path) {
+            in_cycle = in_cycle || s.node == child;
+            if (in_cycle) cycle += "nodes[" + num(s.node) + "] -> ";
+          }
+          check.fail("the node hierarchy has a cycle: " + cycle + "nodes[" + num(child) + "] (nodes[" + num(top.node) +
+                     "].children[" + num(slot) + "])");
+        }
+        if (mark[child] == Mark::unseen) {
+          mark[child] = Mark::on_path;
+          path.push_back({child, 0});
+        }
+      }
+    }
+  }
+
   // Meshes: attribute, index and target accessors exist; modes are known; no compression extensions.
   void check_meshes() const {
     const OrderedJson& accessors = check.objects("accessors");
@@ -417,12 +675,15 @@ struct StructureCheck {
 ExternalFiles check_structure(const std::filesystem::path& path, const OrderedJson& root, bool glb,
                               std::size_t glb_bin_size, const LoadOptions& options) {
   StructureCheck c(path, root);
+  c.check_version();
   c.check_required_extensions();
   c.check_buffers(glb, glb_bin_size);
   c.check_buffer_views();
   c.check_accessors(options);
   c.check_images();
   c.check_meshes();
+  c.check_references();
+  c.check_node_cycles();
   return std::move(c.files);
 }
 

@@ -951,6 +951,7 @@ bool same_folder(const std::filesystem::path& a, const std::filesystem::path& b)
 // write_gltf, and save_gltf_lods when `lods` is set.
 void write_gltf_document(const Asset& asset, const LodChain* lods, const std::filesystem::path& path,
                          const SaveOptions& options) {
+  check_output_path(path);
   const bool glb = format_from_path(path) == Format::glb;
   const GltfDocument* source = asset.gltf.get();
   if (source && asset.meshes.size() != source->converted.size()) {

@@ -82,6 +82,16 @@ struct Header {
   std::size_t data_line = 0;    // line number of the first data line (ASCII error messages)
 };
 
+// Header lines that old exporters wrote without the "comment" keyword, read as comments.
+constexpr std::string_view kBareComments[] = {
+    "Created by Blender3D",  // Blender's exporter up to 2.47 (the keyword was added in August 2008)
+};
+
+bool is_bare_comment(std::string_view line) {
+  return std::any_of(std::begin(kBareComments), std::end(kBareComments),
+                     [&](std::string_view prefix) { return line.substr(0, prefix.size()) == prefix; });
+}
+
 Header parse_header(const std::filesystem::path& path, std::string_view bytes) {
   Header h;
   parse::LineCursor lines(bytes);
@@ -94,7 +104,9 @@ Header parse_header(const std::filesystem::path& path, std::string_view bytes) {
     ctx.line = lines.line_number();
     std::string_view rest = line;
     const std::string_view keyword = parse::next_token(rest);
-    if (keyword.empty() || keyword == "comment" || keyword == "obj_info") continue;
+    if (keyword.empty() || keyword == "comment" || keyword == "obj_info" || is_bare_comment(parse::trim(line))) {
+      continue;
+    }
     if (keyword == "end_header") break;
     if (keyword == "format") {
       const std::string_view enc = parse::next_token(rest);
@@ -167,6 +179,7 @@ class BinarySource {
       default: return 0;
     }
   }
+  std::int64_t list_count(const Property& p) { return integer(p.count_type); }
   void skip(Type t, std::uint64_t n) {
     if (n > remaining() / size_of(t)) truncated();
     p_ += n * size_of(t);
@@ -222,6 +235,16 @@ class AsciiSource {
     if (!parse::parse_int(token, i)) bad(token);
     return i;
   }
+  // A list's item count; a token that is no integer means the data does not hold the list the header declares.
+  std::int64_t list_count(const Property& p) {
+    const std::string_view token = take();
+    std::int64_t i = 0;
+    if (!parse::parse_int(token, i)) {
+      ctx_.fail("list property '" + p.name + "' of " + where() + ": the count " + parse::quote(token) +
+                " is not an integer (does the header match the data?)");
+    }
+    return i;
+  }
   void skip(Type, std::uint64_t n) {
     for (std::uint64_t i = 0; i < n; ++i) take();
   }
@@ -253,8 +276,8 @@ class AsciiSource {
 // What each vertex property is for.
 enum class Role { skip, x, y, z, nx, ny, nz, u, v, red, green, blue, alpha };
 
-Role role_of(const Property& p) {
-  if (p.list) return Role::skip;
+// The vertex attribute a property name stands for (Role::skip for none), whatever the property's type.
+Role role_named(std::string_view name) {
   struct Name {
     std::string_view name;
     Role role;
@@ -268,7 +291,7 @@ Role role_of(const Property& p) {
       {"diffuse_red", Role::red}, {"diffuse_green", Role::green}, {"diffuse_blue", Role::blue},
   };
   for (const Name& n : kNames) {
-    if (n.name == p.name) return n.role;
+    if (n.name == name) return n.role;
   }
   return Role::skip;
 }
@@ -312,7 +335,7 @@ void skip_property(Source& src, const Property& p) {
     src.skip(p.type, 1);
     return;
   }
-  const std::int64_t n = src.integer(p.count_type);
+  const std::int64_t n = src.list_count(p);
   // A negative count is reported as running past the data (skip checks the bounds before moving).
   src.skip(p.type, n < 0 ? ~0ull : static_cast<std::uint64_t>(n));
 }
@@ -323,7 +346,12 @@ void read_vertices(Source& src, const Element& e, Mesh& mesh, const ErrorContext
   bool has[13] = {};
   Type color_type = Type::f32;
   for (const Property& p : e.properties) {
-    roles.push_back(role_of(p));
+    // Other lists are extra data and skipped; one named like an attribute is a header that disagrees with
+    // what a vertex holds (read on, its data would fail later as a malformed list count).
+    if (p.list && role_named(p.name) != Role::skip) {
+      ctx.fail("vertex property '" + p.name + "' is declared as a list where a scalar is expected");
+    }
+    roles.push_back(p.list ? Role::skip : role_named(p.name));
     has[static_cast<int>(roles.back())] = true;
     if (roles.back() == Role::red) color_type = p.type;
     if (roles.back() == Role::x && p.type == Type::f64) r.double_positions = true;
@@ -392,7 +420,7 @@ void read_faces(Source& src, const Element& e, Mesh& mesh, const ErrorContext& c
         skip_property(src, p);
         continue;
       }
-      const std::int64_t count = src.integer(p.count_type);
+      const std::int64_t count = src.list_count(p);
       if (count < 3) ctx.fail("face " + std::to_string(f) + " has " + std::to_string(count) + " vertices (at least 3 needed)");
       if (static_cast<std::uint64_t>(count) > src.remaining() / Source::min_item_bytes(p.type)) {
         ctx.fail("face " + std::to_string(f) + " declares " + std::to_string(count) +

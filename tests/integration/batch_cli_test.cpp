@@ -201,6 +201,49 @@ TEST(BatchCli, FailedAssetsExitOneAndAreListed) {
   EXPECT_TRUE(fs::exists(dir / "out/props/prop_0_LOD1.obj")) << "the others completed";
 }
 
+TEST(BatchCli, BadGltfFailsWithTheMessageOfTheSingleFileCommands) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_gltf_number_range");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 12);
+  const fs::path bad = lib.root / "chars/overflow.gltf";
+  std::string text = lodforge::io::read_file(lib.root / "chars/hero_11.gltf");
+  const auto max = text.find("\"max\":[");
+  ASSERT_NE(max, std::string::npos);
+  text.insert(max + 7, "1e999,");  // still valid JSON grammar; no double holds it
+  std::ofstream(bad, std::ios::binary) << text;
+  const CliResult info = run_cli("info " + q(bad));
+  ASSERT_EQ(info.exit_code, 2) << info.output;
+  const auto at = info.output.find("error: ");
+  ASSERT_NE(at, std::string::npos) << info.output;
+  const std::string message = info.output.substr(at + 7, info.output.find('\n', at) - at - 7);
+  EXPECT_NE(message.find("out of range"), std::string::npos) << message;
+
+  const CliResult r = run_cli(run_args(testlib::write_config(dir), lib.root, dir / "out"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("chars/overflow.gltf: FAILED: " + message + "\n"), std::string::npos) << r.output;
+  const Json report = Json::parse(lodforge::io::read_file(dir / "out/report.json"));
+  for (const Json& a : report["assets"]) {
+    if (a["path"] == "chars/overflow.gltf") {
+      EXPECT_EQ(a["error"], message);
+    }
+  }
+  EXPECT_TRUE(fs::exists(dir / "out/props/prop_0_LOD1.obj")) << "the others completed";
+}
+
+TEST(BatchCli, SymbolicLinkLoopIsSkippedWithAWarning) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_link_loop");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 6);
+  fs::create_symlink("b", lib.root / "a");
+  fs::create_symlink("a", lib.root / "b");
+  const CliResult r = run_cli(run_args(testlib::write_config(dir), lib.root, dir / "out"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("warning: " + (lib.root / "a").string() + ": skipped: symbolic link loop\n"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find(std::to_string(lib.files.size()) + " assets: " + std::to_string(lib.files.size()) + " ok"),
+            std::string::npos)
+      << r.output;
+}
+
 TEST(BatchCli, UsageAndConfigErrorsExitTwoAndWriteNothing) {
   const fs::path dir = lodforge::testing::temp_dir("batch_cli_usage");
   const testlib::Library lib = testlib::write_library(dir / "lib", 3);

@@ -26,6 +26,18 @@ bool no_temporaries(const fs::path& dir) {
   return true;
 }
 
+// A one-triangle glTF (positions and indices in a data URI) whose POSITION accessor's "max" is `max`.
+std::string triangle_gltf(const std::string& max) {
+  return R"({"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+  "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": )" +
+         max + R"(},
+                {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 6}],
+  "buffers": [{"byteLength": 44,
+    "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA="}]})";
+}
+
 TEST(Cli, HelpListsSubcommandsAndExitCodes) {
   const CliRun r = run_cli("--help");
   EXPECT_EQ(r.exit_code, 0);
@@ -52,6 +64,30 @@ TEST(Cli, ConvertOfBadInputWritesNothing) {
   EXPECT_TRUE(no_temporaries(dir));
 }
 
+TEST(Cli, OutputThatIsAFolderIsRefusedBeforeAnythingIsWritten) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_output_folder");
+  write_text(dir / "t.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  write_text(dir / "t.gltf", triangle_gltf("[1, 1, 0]"));
+  for (const char* name : {"out.glb", "out.gltf", "out.obj", "out.ply"}) {
+    fs::create_directories(dir / name);
+    for (const char* in : {"t.obj", "t.gltf"}) {
+      for (const char* command : {"convert", "simplify"}) {
+        const std::string args = std::string(command) + " " + (dir / in).string() + " " + (dir / name).string();
+        const CliRun r = run_cli(args);
+        EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
+        EXPECT_NE(r.output.find("error: " + (dir / name).string() +
+                                ": is an existing folder; the output must be a file name\n"),
+                  std::string::npos)
+            << args << "\n"
+            << r.output;
+        EXPECT_TRUE(fs::is_empty(dir / name)) << args;
+      }
+    }
+  }
+  EXPECT_FALSE(fs::exists(dir / "out.bin")) << "a .gltf output must not leave its buffer behind";
+  EXPECT_TRUE(no_temporaries(dir));
+}
+
 TEST(Cli, ConvertEmptyAndWrongMagicGlbExitTwo) {
   const fs::path dir = lodforge::testing::temp_dir("cli_bad_glb");
   write_text(dir / "empty.glb", "");
@@ -63,6 +99,52 @@ TEST(Cli, ConvertEmptyAndWrongMagicGlbExitTwo) {
     EXPECT_FALSE(fs::exists(dir / "out.glb"));
   }
   EXPECT_TRUE(no_temporaries(dir));
+}
+
+TEST(Cli, GltfNumberOutOfRangeIsBadInputInEveryCommand) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_gltf_number_range");
+  const fs::path good = dir / "good.gltf", bad = dir / "bad.gltf", out = dir / "out.glb";
+  write_text(good, triangle_gltf("[1, 1, 0]"));
+  write_text(bad, triangle_gltf("[1e999, 1, 0]"));
+  ASSERT_EQ(run_cli("info " + good.string()).exit_code, 0);
+  const std::string message = bad.string() + ": accessors[0].max[0]: number '1e999' is out of range";
+  for (const std::string& args :
+       {"info " + bad.string(), "convert " + bad.string() + " " + out.string(),
+        "simplify " + bad.string() + " " + out.string(), "eval " + good.string() + " " + bad.string()}) {
+    const CliRun r = run_cli(args);
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find("error: " + message), std::string::npos) << args << "\n" << r.output;
+    EXPECT_FALSE(fs::exists(out)) << args;
+  }
+  EXPECT_TRUE(no_temporaries(dir));
+}
+
+TEST(Cli, EscapedExceptionIsAnInternalErrorOnOneLine) {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  GTEST_SKIP() << "a sanitizer's shadow memory does not fit under ulimit -v";
+#endif
+  // Out of memory while reading a file: not bad input (exit 2), and no abort either.
+  const fs::path dir = lodforge::testing::temp_dir("cli_internal_error");
+  write_text(dir / "huge.obj", "");
+  fs::resize_file(dir / "huge.obj", 1ull << 30);  // sparse: no disk space used
+  const CliRun r = lodforge::testing::run_command("ulimit -v 200000 && " + std::string(LODFORGE_CLI) + " info " +
+                                                  lodforge::testing::shell_quote(dir / "huge.obj"));
+  EXPECT_EQ(r.exit_code, 3) << r.output;
+  EXPECT_EQ(r.output, "internal error: out of memory\n");
+}
+
+TEST(Cli, InfoOnAFolderSkipsASymbolicLinkLoopWithAWarning) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_info_link_loop");
+  write_text(dir / "t.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  fs::create_symlink("b", dir / "a");
+  fs::create_symlink("a", dir / "b");
+  const CliRun r = run_cli("info " + dir.string());
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  for (const char* loop : {"a", "b"}) {
+    EXPECT_NE(r.output.find("warning: " + (dir / loop).string() + ": skipped: symbolic link loop\n"), std::string::npos)
+        << r.output;
+  }
+  EXPECT_NE(r.output.find("summary: 1 asset(s) loaded, 0 failed"), std::string::npos) << r.output;
 }
 
 TEST(Cli, DemoLibraryLoadsCleanlyWithInfo) {

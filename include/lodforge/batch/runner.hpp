@@ -104,11 +104,18 @@ struct RunResult {
   double seconds = 0;
   bool cancelled = false;
   std::filesystem::path report_path;  // where report.json went (empty if not written)
+  std::vector<std::string> warnings;  // library entries the scan skipped (LibraryScan::skipped)
 };
 
-// The supported files under `input_dir`, as sorted '/'-separated relative paths. Throws io::IoError when the
-// folder cannot be read.
-std::vector<std::string> scan_library(const std::filesystem::path& input_dir);
+struct LibraryScan {
+  std::vector<std::string> assets;  // the supported files, as sorted '/'-separated relative paths
+  // Entries that cannot be read, each "<path>: skipped: <why>" (a symbolic link loop, a broken link with an
+  // asset's extension, a folder that cannot be opened); the rest of the library is scanned as usual.
+  std::vector<std::string> skipped;
+};
+
+// The supported files under `input_dir`. Throws io::IoError when the folder itself cannot be read.
+LibraryScan scan_library(const std::filesystem::path& input_dir);
 
 // Throws io::IoError when the input folder cannot be read or the output folder cannot be created; everything
 // that goes wrong with one asset is recorded in its report record instead.

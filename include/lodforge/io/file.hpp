@@ -11,6 +11,10 @@ namespace lodforge::io {
 // Reads a whole file; throws IoError("<path>: cannot open ..."), also for directories.
 std::string read_file(const std::filesystem::path& path);
 
+// Throws IoError when `path` is an existing folder: an output must be a file. Writers of several files (.gltf
+// and its .bin) call it before writing any, so none is left behind.
+void check_output_path(const std::filesystem::path& path);
+
 // Writes `bytes` to `path` atomically: the data goes to "<path>.tmp-<pid>-<n>" in the same folder and is
 // renamed over `path` only when complete. On failure nothing is left behind and IoError is thrown.
 void write_file_atomic(const std::filesystem::path& path, std::string_view bytes);

@@ -4,6 +4,7 @@
 #include "lodforge/batch/runner.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <set>
 
@@ -459,7 +460,65 @@ TEST(BatchRunner, ScanListsSupportedFilesSortedAndSkipsTheCache) {
   for (const char* f : {"b/c/z.obj", "a.GLB", "b/readme.txt", "b/x.ply", ".lodforge-cache/staging-0-of-1/q.obj"}) {
     std::ofstream(dir / f) << "x";
   }
-  EXPECT_EQ(scan_library(dir), (std::vector<std::string>{"a.GLB", "b/c/z.obj", "b/x.ply"}));
+  const LibraryScan scan = scan_library(dir);
+  EXPECT_EQ(scan.assets, (std::vector<std::string>{"a.GLB", "b/c/z.obj", "b/x.ply"}));
+  EXPECT_TRUE(scan.skipped.empty());
+}
+
+TEST(BatchRunner, ScanSkipsSymbolicLinkLoopsAndBrokenLinksWithAWarning) {
+  const fs::path dir = testing::temp_dir("batch_runner_scan_links");
+  fs::create_directories(dir / "sub");
+  for (const char* f : {"a.obj", "sub/b.ply"}) std::ofstream(dir / f) << "x";
+  fs::create_symlink("loop_b", dir / "loop_a");  // a -> b -> a: the scan used to stop at a filesystem_error
+  fs::create_symlink("loop_a", dir / "loop_b");
+  fs::create_symlink("self.glb", dir / "sub/self.glb");
+  fs::create_symlink("missing.obj", dir / "gone.obj");  // named like an asset: worth a warning
+  fs::create_symlink("missing", dir / "notes");         // not an asset either way: silent
+  const LibraryScan scan = scan_library(dir);
+  EXPECT_EQ(scan.assets, (std::vector<std::string>{"a.obj", "sub/b.ply"}));
+  EXPECT_EQ(scan.skipped,
+            (std::vector<std::string>{(dir / "gone.obj").string() + ": skipped: broken symbolic link",
+                                      (dir / "loop_a").string() + ": skipped: symbolic link loop",
+                                      (dir / "loop_b").string() + ": skipped: symbolic link loop",
+                                      (dir / "sub/self.glb").string() + ": skipped: symbolic link loop"}));
+}
+
+TEST(BatchRunner, ScanListsALinkedFileUnderItsOwnName) {
+  const fs::path dir = testing::temp_dir("batch_runner_scan_alias");
+  fs::create_directories(dir / "lib/props");
+  std::ofstream(dir / "lib/props/crate.obj") << "x";
+  std::ofstream(dir / "elsewhere.obj") << "x";
+  fs::create_symlink("crate.obj", dir / "lib/props/crate_alias.obj");
+  fs::create_symlink("../../elsewhere.obj", dir / "lib/props/shared.obj");  // target outside the library
+  EXPECT_EQ(scan_library(dir / "lib").assets,
+            (std::vector<std::string>{"props/crate.obj", "props/crate_alias.obj", "props/shared.obj"}));
+}
+
+TEST(BatchRunner, ScanSkipsAFolderItCannotOpenWithAWarning) {
+  if (::geteuid() == 0) GTEST_SKIP() << "root opens every folder";
+  const fs::path dir = testing::temp_dir("batch_runner_scan_locked");
+  fs::create_directories(dir / "locked");
+  std::ofstream(dir / "locked/hidden.obj") << "x";
+  std::ofstream(dir / "a.obj") << "x";
+  fs::permissions(dir / "locked", fs::perms::none);
+  const LibraryScan scan = scan_library(dir);
+  fs::permissions(dir / "locked", fs::perms::owner_all);
+  EXPECT_EQ(scan.assets, (std::vector<std::string>{"a.obj"}));
+  ASSERT_EQ(scan.skipped.size(), 1u);
+  EXPECT_EQ(scan.skipped[0].rfind((dir / "locked").string() + ": skipped: cannot open the folder: ", 0), 0u)
+      << scan.skipped[0];
+}
+
+TEST(BatchRunner, SymbolicLinkLoopIsSkippedAndTheRestProcessed) {
+  const fs::path dir = testing::temp_dir("batch_runner_link_loop");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 6);
+  fs::create_symlink("b", lib.root / "props/a");
+  fs::create_symlink("a", lib.root / "props/b");
+  const RunResult r = run(lib.root, dir / "out", 2);
+  EXPECT_EQ(r.succeeded, lib.files.size());
+  EXPECT_EQ(r.failed, 0u);
+  EXPECT_EQ(r.warnings, (std::vector<std::string>{(lib.root / "props/a").string() + ": skipped: symbolic link loop",
+                                                  (lib.root / "props/b").string() + ": skipped: symbolic link loop"}));
 }
 
 TEST(BatchRunner, ParsesByteSizes) {

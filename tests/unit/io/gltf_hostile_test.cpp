@@ -70,8 +70,8 @@ json triangle_doc(const std::string& bin, const std::string& bin_uri = "") {
   };
 }
 
-std::string glb_of(const json& doc, const std::string& bin) {
-  std::string j = doc.dump();
+// A GLB of the JSON text `j` (raw text, so that a test can hold what json would refuse to build) and `bin`.
+std::string glb_of(std::string j, const std::string& bin) {
   while (j.size() % 4) j.push_back(' ');
   std::string b = bin;
   while (b.size() % 4) b.push_back('\0');
@@ -86,6 +86,18 @@ std::string glb_of(const json& doc, const std::string& bin) {
   out.append("BIN\0", 4);
   out += b;
   return out;
+}
+
+std::string glb_of(const json& doc, const std::string& bin) {
+  return glb_of(doc.dump(), bin);
+}
+
+// `text` with its only occurrence of `from` replaced by `to`.
+std::string replaced(std::string text, const std::string& from, const std::string& to) {
+  const auto at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  return text;
 }
 
 json glb_triangle_doc(const std::string& bin) {
@@ -195,6 +207,126 @@ TEST(GltfHostile, JsonNestedTooDeep) {
   const std::string deep =
       "{\"asset\":{\"version\":\"2.0\"},\"extras\":" + std::string(100000, '[') + std::string(100000, ']') + "}";
   expect_rejected(dir, write_bytes(dir / "d.gltf", deep), {"nested deeper"});
+}
+
+TEST(GltfHostile, NumberBeyondDouble) {
+  // Valid JSON grammar, but no double holds it: the parser throws out_of_range, not parse_error.
+  const fs::path dir = testing::temp_dir("gltf_hostile_number_range");
+  const std::string text = replaced(triangle_doc(triangle_bin()).dump(), "\"max\":[1,1,0]", "\"max\":[1e999,1,0]");
+  expect_rejected(dir, write_bytes(dir / "t.gltf", text), {"accessors[0].max[0]", "'1e999'", "out of range"});
+  const std::string glb_text =
+      replaced(glb_triangle_doc(triangle_bin()).dump(), "\"max\":[1,1,0]", "\"max\":[1,-1e999,0]");
+  expect_rejected(dir, write_bytes(dir / "t.glb", glb_of(glb_text, triangle_bin())),
+                  {"accessors[0].max[1]", "'-1e999'", "out of range"});
+}
+
+TEST(GltfHostile, NumberBeyondDoubleDeepInExtras) {
+  const fs::path dir = testing::temp_dir("gltf_hostile_number_range_deep");
+  json d = triangle_doc(triangle_bin());
+  d["nodes"][0]["extras"] = {{"odd key", {{{"a", 1}}, {0, 1, "PLACEHOLDER"}}}};
+  const std::string text = replaced(d.dump(), "\"PLACEHOLDER\"", "1" + std::string(400, '0'));
+  expect_rejected(dir, write_bytes(dir / "t.gltf", text),
+                  {"nodes[0].extras[\"odd key\"][1][2]", "out of range", "..."});
+}
+
+TEST(GltfHostile, GltfOneIsNotSupported) {
+  // A glTF 1.0 document: dictionaries where 2.0 has arrays. The version is the reason, not the first dictionary.
+  const fs::path dir = testing::temp_dir("gltf_hostile_version_one");
+  const json v1 = {{"asset", {{"version", "1.0"}}},
+                   {"scene", "defaultScene"},
+                   {"scenes", {{"defaultScene", {{"nodes", {"node_1"}}}}}},
+                   {"nodes", {{"node_1", {{"meshes", {"mesh_1"}}}}}},
+                   {"meshes", {{"mesh_1", {{"primitives", json::array()}}}}}};
+  expect_rejected(dir, write_bytes(dir / "v1.gltf", v1.dump()), {"glTF 1.0 is not supported", "only glTF 2.0"});
+  std::string glb = glb_of(glb_triangle_doc(triangle_bin()), triangle_bin());
+  glb[4] = 1;  // binary glTF 1.0 (KHR_binary_glTF) has version 1 in the GLB header
+  expect_rejected(dir, write_bytes(dir / "v1.glb", glb), {"GLB version 1", "glTF 1.0", "not supported"});
+}
+
+TEST(GltfHostile, AssetVersionMissingOrUnknown) {
+  const fs::path dir = testing::temp_dir("gltf_hostile_version");
+  json d = triangle_doc(triangle_bin());
+  d["asset"] = {{"generator", "hand"}};
+  expect_rejected(dir, write_bytes(dir / "none.gltf", d.dump()), {"asset.version is missing"});
+  d["asset"] = {{"version", "3.0"}};
+  expect_rejected(dir, write_bytes(dir / "three.gltf", d.dump()), {"asset.version \"3.0\"", "only 2.0"});
+  d["asset"] = {{"version", "2.0"}, {"minVersion", "2.1"}};
+  expect_rejected(dir, write_bytes(dir / "min.gltf", d.dump()), {"asset.minVersion \"2.1\""});
+  d["asset"] = {{"version", "2.1"}, {"minVersion", "2.0"}};  // a later 2.x that 2.0 readers can read
+  EXPECT_EQ(load_asset(write_bytes(dir / "later.gltf", d.dump())).meshes.size(), 1u);
+}
+
+// The triangle document with a second node, a skin, a camera, a texture on a material and an animation, every
+// reference in range.
+json referencing_doc() {
+  json d = triangle_doc(triangle_bin());
+  d["scene"] = 0;
+  d["nodes"] = {{{"mesh", 0}, {"children", {1}}, {"skin", 0}}, {{"camera", 0}}};
+  d["skins"] = {{{"joints", {1}}, {"skeleton", 1}}};
+  d["cameras"] = {{{"type", "perspective"}, {"perspective", {{"yfov", 1.0}, {"znear", 0.1}}}}};
+  d["images"] = {{{"uri", "missing.png"}}};
+  d["samplers"] = json::array({json::object()});
+  d["textures"] = {{{"source", 0}, {"sampler", 0}}};
+  d["materials"] = {
+      {{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}, {"normalTexture", {{"index", 0}}}}};
+  d["meshes"][0]["primitives"][0]["material"] = 0;
+  const json sampler = {{"input", 1}, {"output", 0}};
+  const json channel = {{"sampler", 0}, {"target", {{"node", 1}, {"path", "translation"}}}};
+  d["animations"] = json::array({{{"samplers", json::array({sampler})}, {"channels", json::array({channel})}}});
+  return d;
+}
+
+TEST(GltfHostile, ReferencesInRangeLoad) {
+  const fs::path dir = testing::temp_dir("gltf_hostile_references_ok");
+  const Asset a = load_asset(write_bytes(dir / "t.gltf", referencing_doc().dump()));
+  EXPECT_EQ(a.meshes.at(0).face_count(), 1u);
+}
+
+TEST(GltfHostile, ReferenceOutOfRange) {
+  // Each was accepted and written through to every output; each is refused with its JSON path.
+  struct Case {
+    const char* pointer;  // JSON pointer of the property set to `value`
+    json value;
+    const char* message;
+  };
+  const Case cases[] = {
+      {"/nodes/0/mesh", 5, "nodes[0].mesh = 5 is out of range (meshes has 1)"},
+      {"/scenes/0/nodes", {9}, "scenes[0].nodes[0] = 9 is out of range (nodes has 2)"},
+      {"/scene", 3, "scene = 3 is out of range (scenes has 1)"},
+      {"/nodes/0/children", {1, 7}, "nodes[0].children[1] = 7 is out of range (nodes has 2)"},
+      {"/nodes/0/skin", 1, "nodes[0].skin = 1 is out of range (skins has 1)"},
+      {"/nodes/1/camera", -1, "nodes[1].camera = -1 is not an index into cameras"},
+      {"/skins/0/joints", {0, 2}, "skins[0].joints[1] = 2 is out of range (nodes has 2)"},
+      {"/textures/0/source", 4, "textures[0].source = 4 is out of range (images has 1)"},
+      {"/materials/0/pbrMetallicRoughness/baseColorTexture/index", 1,
+       "materials[0].pbrMetallicRoughness.baseColorTexture.index = 1 is out of range (textures has 1)"},
+      {"/materials/0/normalTexture", {{"scale", 1}}, "materials[0].normalTexture.index is missing"},
+      {"/animations/0/channels/0/target/node", 2,
+       "animations[0].channels[0].target.node = 2 is out of range (nodes has 2)"},
+      {"/animations/0/channels/0/sampler", 1, "animations[0].channels[0].sampler is not an index into"},
+      {"/animations/0/samplers/0/output", 2, "animations[0].samplers[0].output = 2 is out of range (accessors has 2)"},
+  };
+  const fs::path dir = testing::temp_dir("gltf_hostile_references");
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.pointer);
+    json d = referencing_doc();
+    d[json::json_pointer(c.pointer)] = c.value;
+    expect_rejected(dir, write_bytes(dir / "t.gltf", d.dump()), {c.message});
+  }
+}
+
+TEST(GltfHostile, NodeCycle) {
+  const fs::path dir = testing::temp_dir("gltf_hostile_node_cycle");
+  json d = triangle_doc(triangle_bin());
+  d["nodes"] = {{{"mesh", 0}, {"children", {1}}}, {{"children", {2}}}, {{"children", {3}}}, {{"children", {1}}}};
+  expect_rejected(dir, write_bytes(dir / "t.gltf", d.dump()),
+                  {"node hierarchy has a cycle: nodes[1] -> nodes[2] -> nodes[3] -> nodes[1]", "nodes[3].children[0]"});
+  d["nodes"] = {{{"mesh", 0}, {"children", {0}}}};
+  expect_rejected(dir, write_bytes(dir / "self.gltf", d.dump()), {"cycle: nodes[0] -> nodes[0]"});
+  d["nodes"] = json::array();  // a deep chain is not a cycle, and must not overflow the stack
+  for (int i = 0; i < 100000; ++i) d["nodes"].push_back({{"children", {i + 1}}});
+  d["nodes"].push_back({{"mesh", 0}});
+  EXPECT_EQ(load_asset(write_bytes(dir / "deep.gltf", d.dump())).meshes.size(), 1u);
 }
 
 TEST(GltfHostile, BufferUriOutsideTheFolder) {

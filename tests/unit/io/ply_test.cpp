@@ -22,6 +22,7 @@ std::string first_difference(const Mesh& a, const Mesh& b);
 std::string structural_problems(const Mesh& m);
 Asset save_and_reload(const Asset& asset, const std::string& file_name);
 void expect_corpus_round_trip(const std::filesystem::path& file, const std::string& relative);
+std::string blender_247_ply();
 
 namespace {
 
@@ -154,6 +155,24 @@ TEST(Ply, AcceptsAlternativePropertyNamesAndTypes) {
   EXPECT_NE(a.warnings[0].find("double"), std::string::npos);
 }
 
+TEST(Ply, ReadsWhatBlender247Wrote) {
+  // Its comment line lacks the "comment" keyword; it was refused as an unknown header line.
+  const Mesh m = read(blender_247_ply());
+  ASSERT_EQ(m.face_count(), 1u);
+  EXPECT_EQ(m.face_size(0), 4u);
+  EXPECT_EQ(m.positions[2], (Vec3f{{-1, -1, 0}}));
+  EXPECT_EQ(m.normals[0], (Vec3f{{0, 0, 1}}));
+  EXPECT_EQ(m.uvs[0][1], (Vec2f{{0, 1}}));
+  EXPECT_EQ(m.colors[0][3], (Vec4f{{0, 0, 1, 1}}));
+}
+
+TEST(Ply, EmptyAndBlankHeaderLinesAreSkipped) {
+  const std::string text =
+      "ply\nformat ascii 1.0\n\n \t\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\r\n"
+      "element face 1\nproperty list uchar int vertex_indices\n\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+  EXPECT_EQ(read(text).face_count(), 1u);
+}
+
 TEST(Ply, FaceElementBeforeVertexElementIsFine) {
   const std::string text =
       "ply\nformat ascii 1.0\nelement face 1\nproperty list uchar int vertex_indices\nelement vertex 3\n"
@@ -279,6 +298,23 @@ TEST(PlyHostile, MalformedAsciiNumber) {
   EXPECT_ERROR("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
                "end_header\n0 1.5.2 0\n",
                "line 8: malformed number '1.5.2' in vertex 0");
+}
+TEST(PlyHostile, ListWhereAScalarIsExpected) {
+  // A header that says "list" for a vertex attribute the reader takes as one number: refused as such, not as
+  // the "malformed number" its scalar data would give.
+  const std::string header =
+      "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+      "property list uchar float nx\nproperty float ny\nproperty float nz\nend_header\n";
+  EXPECT_ERROR(header + "0 0 0 0.577 0.577 0.577\n",
+               "vertex property 'nx' is declared as a list where a scalar is expected");
+  std::string binary = header;
+  binary.replace(binary.find("ascii"), 5, "binary_little_endian");
+  EXPECT_ERROR(binary + std::string(24, '\0'), "vertex property 'nx' is declared as a list where a scalar is expected");
+}
+TEST(PlyHostile, ListCountThatIsNotAnInteger) {
+  EXPECT_ERROR("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+               "property list uchar float quality\nend_header\n0 0 0 0.5\n",
+               "line 9: list property 'quality' of vertex 0: the count '0.5' is not an integer");
 }
 TEST(PlyHostile, FaceWithTwoVertices) {
   std::string bytes = kTriangleHeader + triangle_body();

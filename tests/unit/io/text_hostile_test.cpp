@@ -78,6 +78,21 @@ std::string first_difference(const Mesh& a, const Mesh& b) {
   return {};
 }
 
+// A quad as Blender's PLY exporter up to 2.47 wrote it (script version 0.9, faces with UVs): its comment line
+// has no "comment" keyword, and types are spelled float32/uint8/int32. Shared with ply_test.cpp.
+std::string blender_247_ply() {
+  return "ply\nformat ascii 1.0\nCreated by Blender3D 247 - www.blender.org, source file: crate.blend\n"
+         "element vertex 4\nproperty float32 x\nproperty float32 y\nproperty float32 z\nproperty float32 nx\n"
+         "property float32 ny\nproperty float32 nz\nproperty float32 s\nproperty float32 t\nproperty uint8 red\n"
+         "property uint8 green\nproperty uint8 blue\nelement face 1\nproperty list uint8 int32 vertex_indices\n"
+         "end_header\n"
+         "1.000000 1.000000 0.000000 0.000000 0.000000 1.000000 1.000000 1.000000 255 255 255\n"
+         "-1.000000 1.000000 0.000000 0.000000 0.000000 1.000000 0.000000 1.000000 255 0 0\n"
+         "-1.000000 -1.000000 0.000000 0.000000 0.000000 1.000000 0.000000 0.000000 0 255 0\n"
+         "1.000000 -1.000000 0.000000 0.000000 0.000000 1.000000 1.000000 0.000000 0 0 255\n"
+         "4 0 1 2 3 \n";
+}
+
 // Saves `asset` under `file_name` in a fresh temporary folder and loads it back.
 Asset save_and_reload(const Asset& asset, const std::string& file_name) {
   const auto dir = testing::temp_dir("io_round_trip_" + file_name);
@@ -212,6 +227,7 @@ std::vector<Case> valid_cases() {
        "0 1 0 9 9 9\n3 0 1 2\n4 0 1 2 3\n"},
       {"ply_le", read_ply, binary_ply_quad(false)},
       {"ply_be", read_ply, binary_ply_quad(true)},
+      {"ply_blender247", read_ply, blender_247_ply()},
       {"off", read_off, "OFF\n# c\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n4 0 1 2 3 255 0 0\n"},
       {"stl_ascii", read_stl,
        "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 1 1 0\nendloop\nendfacet\n"
