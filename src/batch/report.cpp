@@ -137,7 +137,7 @@ void strip_seconds(Json& j) {
 }  // namespace
 
 Json report_summary(const Json& assets, double seconds) {
-  std::uint64_t ok = 0, failed = 0, skipped = 0, hits = 0, lods = 0, in_tris = 0, out_tris = 0;
+  std::uint64_t ok = 0, failed = 0, skipped = 0, hits = 0, lods = 0, in_tris = 0, out_tris = 0, missed = 0;
   for (const Json& a : assets) {
     const std::string status = a.value("status", std::string());
     if (status == "ok") {
@@ -145,7 +145,11 @@ Json report_summary(const Json& assets, double seconds) {
       in_tris += a.contains("input") ? count(a["input"], "triangles") : 0;
       if (const auto it = a.find("lods"); it != a.end() && it->is_array()) {
         lods += it->size();
-        for (const Json& l : *it) out_tris += count(l, "triangles");
+        for (const Json& l : *it) {
+          out_tris += count(l, "triangles");
+          const auto b = l.find("budget");
+          missed += b != l.end() && b->is_object() && b->value("status", std::string()) == "missed";
+        }
       }
     } else if (status == "failed") {
       ++failed;
@@ -156,7 +160,7 @@ Json report_summary(const Json& assets, double seconds) {
   }
   return {{"assets", assets.size()}, {"succeeded", ok}, {"failed", failed},           {"skipped", skipped},
           {"cache_hits", hits},      {"lods", lods},    {"input_triangles", in_tris}, {"output_triangles", out_tris},
-          {"seconds", seconds}};
+          {"seconds", seconds},      {"lods_missed", missed}};
 }
 
 std::vector<std::string> check_report(const Json& report) {

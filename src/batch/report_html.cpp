@@ -246,6 +246,8 @@ struct Lod {
   std::optional<double> quad_fraction;  // quads / faces of the LOD
   std::optional<std::string> stop_reason;
   std::optional<double> seconds;
+  std::optional<std::string> budget;  // "met", or "missed: " and the reasons
+  bool missed() const { return budget && budget->starts_with("missed"); }
 };
 
 struct Asset {
@@ -282,6 +284,17 @@ Lod read_lod(const json& j) {
   lod.quad_fraction = number(j, "quad_fraction");
   lod.stop_reason = text(j, "stop_reason");
   lod.seconds = number(j, "seconds");
+  const json& budget = member(j, "budget");
+  if (const std::optional<std::string> status = text(budget, "status")) {
+    std::string b = *status;
+    const json& reasons = member(budget, "reasons");
+    if (reasons.is_array()) {
+      for (const json& r : reasons) {
+        if (r.is_string()) b += (b == *status ? ": " : "; ") + r.get<std::string>();
+      }
+    }
+    lod.budget = std::move(b);
+  }
   return lod;
 }
 
@@ -321,8 +334,8 @@ struct Row {
   const Lod* lod = nullptr;  // nullptr: an asset without LODs (failed, skipped), shown as one row of its own
 };
 
-// Failed assets on top (they have no error to compare), then larger Hausdorff first, rows without a measurement
-// last; ties by path, then document order (stable sort).
+// Failed assets on top (they have no error to compare), then LODs that missed their budget, then larger
+// Hausdorff first, rows without a measurement last; ties by path, then document order (stable sort).
 std::vector<Row> order_rows(const std::vector<Asset>& assets) {
   std::vector<Row> rows;
   for (const Asset& a : assets) {
@@ -332,6 +345,8 @@ std::vector<Row> order_rows(const std::vector<Asset>& assets) {
   const auto hausdorff = [](const Row& r) { return r.lod ? r.lod->hausdorff_rel : std::nullopt; };
   std::stable_sort(rows.begin(), rows.end(), [&](const Row& x, const Row& y) {
     if (x.asset->failed() != y.asset->failed()) return x.asset->failed();
+    const bool mx = x.lod && x.lod->missed(), my = y.lod && y.lod->missed();
+    if (mx != my) return mx;
     const std::optional<double> hx = hausdorff(x), hy = hausdorff(y);
     if (hx.has_value() != hy.has_value()) return hx.has_value();
     if (hx && *hx != *hy) return *hx > *hy;
@@ -618,6 +633,7 @@ void render_lod_table(std::string& out, const std::vector<Row>& rows) {
   header_cell(out, "quad fraction", true);
   header_cell(out, "stop reason", false);
   header_cell(out, "time s", true);
+  header_cell(out, "budget", false);
   out += "</tr></thead><tbody>\n";
 
   const Lod kNoLod;  // every field absent: the LOD columns of an asset without LODs
@@ -650,6 +666,7 @@ void render_lod_table(std::string& out, const std::vector<Row>& rows) {
     number_cell(out, l.quad_fraction, as_ratio);
     text_cell(out, l.stop_reason);
     number_cell(out, rows[i].lod ? l.seconds : a.seconds, as_seconds);  // no LODs: the asset's own time
+    text_cell(out, l.budget, l.missed() ? "st-failed" : "");
     out += "</tr>\n";
   }
   out += "</tbody></table></div>\n</section>\n";

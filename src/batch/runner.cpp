@@ -383,6 +383,36 @@ Json target_triangles_json(const LodTarget& t, std::size_t source_triangles) {
   return nullptr;
 }
 
+// Whether a LOD met what its spec asked, and why not (report.json "budget"): a ratio or triangle target within
+// 2%, an error budget held by measurement (collapses backed off to hold it are said, not a miss), and a LOD at
+// least 10% smaller than the level before (else it is close to a copy of it).
+Json budget_json(const LodTarget& t, std::size_t source_triangles, std::size_t triangles, std::size_t previous,
+                 std::size_t level, const std::set<std::string>& stops, bool error_met, std::size_t backed_off) {
+  Json reasons = Json::array();
+  std::string why_stopped;
+  for (const std::string& s : stops) {
+    if (s != "target_reached") why_stopped += (why_stopped.empty() ? "" : ", ") + s;
+  }
+  const bool error_target =
+      t.kind == TargetKind::max_error_rel || t.kind == TargetKind::max_error_abs || t.kind == TargetKind::screen_size;
+  if (error_target) {
+    if (!error_met) reasons.push_back("error budget not met by measurement");
+  } else if (const Json target = target_triangles_json(t, source_triangles); target.is_number()) {
+    const double allowed = std::ceil(1.02 * target.get<double>());
+    if (static_cast<double>(triangles) > allowed) {
+      reasons.push_back("target not reached: " + std::to_string(triangles) + " triangles for " +
+                        std::to_string(target.get<std::size_t>()) +
+                        (why_stopped.empty() ? std::string() : " (stopped: " + why_stopped + ")"));
+    }
+  }
+  if (triangles > 0 && 10 * triangles > 9 * previous) {
+    reasons.push_back("not 10% smaller than " + (level == 0 ? std::string("the source") : "LOD " + std::to_string(level)));
+  }
+  Json out{{"status", reasons.empty() ? "met" : "missed"}, {"reasons", std::move(reasons)}};
+  if (error_target) out["collapses_backed_off"] = backed_off;
+  return out;
+}
+
 // The LOD record's "attributes" object, name -> number: the face-normal deviation of the surface samples
 // (from the position eval), then, from evaluate_attributes per asset mesh (source mesh m against LOD mesh m;
 // meshes folded together: counts summed, errors and ratios their maximum): "rms.<STREAM>" the RMS error of each
@@ -586,6 +616,7 @@ class Pipeline {
       }
       std::string stop;
       for (const std::string& s : stops) stop += (stop.empty() ? "" : ",") + s;
+      const std::size_t previous = k == 0 ? job.triangles : lods.back()["triangles"].get<std::size_t>();
 
       const Mesh lod = merged_surface(lod_ptrs);
       const std::size_t larger = std::max(source.triangle_count(), lod.triangle_count());
@@ -616,7 +647,8 @@ class Pipeline {
                       // certified: an upper bound on the LOD's distance to the source; measured: met by
                       // the budget's samples where the bound could not be refined; qem: a ranking only.
                       {"error_bound_kind", verified ? (certified ? "certified" : "measured") : "qem"},
-                      {"budget", verified ? Json{{"met", met}, {"collapses_backed_off", undone}} : Json(nullptr)},
+                      {"budget", budget_json(spec.target, job.triangles, triangles, k == 0 ? job.triangles : previous,
+                                             k, stops, verified && met, undone)},
                       {"mean_rel", finite(e.mean_rel())},
                       {"rms_rel", finite(e.rms_rel())},
                       {"hausdorff_rel", finite(e.hausdorff_rel())},
@@ -629,6 +661,13 @@ class Pipeline {
                       {"screen_coverage", coverage}});
     }
     job.coverage.push_back(0.0);  // the coarsest LOD is never culled
+    for (std::size_t k = 1; k < lods.size(); ++k) {
+      if (lods[k]["triangles"].get<std::size_t>() > lods[k - 1]["triangles"].get<std::size_t>()) {
+        job.record["warnings"] = Json::array({"LOD " + std::to_string(k + 1) + " has more triangles than LOD " +
+                                              std::to_string(k) + " (its targets mix kinds)"});
+        break;  // said once per asset
+      }
+    }
     job.record["lods"] = std::move(lods);
   }
 

@@ -126,6 +126,7 @@ struct RunArgs {
   std::string config, input, output, shard, memory_limit;
   unsigned jobs = 0;
   bool force = false;
+  bool strict = false;
 };
 
 // Config and options shared by `run` and `bench`; prints the problem and returns nullopt on a usage error.
@@ -155,6 +156,9 @@ void print_summary(const batch::RunResult& r) {
     html.replace_extension(".html");
     std::printf("  report: %s, %s\n", r.report_path.string().c_str(), html.string().c_str());
   }
+  const unsigned long long missed = s.value("lods_missed", 0ull);
+  std::printf("  %llu of %llu LOD(s) met their budget, %llu missed%s\n", s["lods"].get<unsigned long long>() - missed,
+              s["lods"].get<unsigned long long>(), missed, missed > 0 ? " (report.json: lods[].budget.reasons)" : "");
 }
 
 void run_command(const RunArgs& a) {
@@ -203,6 +207,7 @@ void run_command(const RunArgs& a) {
     for (const std::string& f : r.failures) std::fprintf(stderr, "  %s\n", f.c_str());
     set_exit_code(1);
   }
+  if (a.strict && r.report["summary"].value("lods_missed", 0ull) > 0) set_exit_code(1);
   if (r.cancelled && g_cancel) {
     std::fprintf(stderr, "interrupted: the assets not reported were not processed; run again to resume\n");
     set_exit_code(kExitInterrupted);
@@ -277,6 +282,9 @@ void register_run(CLI::App& app) {
                   "K/N: process only the assets whose path hashes to K mod N (K is 0-based); the report goes to "
                   "report.shard-K-of-N.json, see merge-reports");
   cmd->add_flag("--force", a->force, "ignore the cache: rebuild every asset");
+  cmd->add_flag("--strict", a->strict,
+                "exit 1 when any LOD misses its budget (target not reached, error budget not met, or not 10% "
+                "smaller than the level before)");
   cmd->add_option("--memory-limit", a->memory_limit,
                   "memory the run stays under, e.g. 4G or 512M (default: half the RAM); assets start only while "
                   "their estimated memory fits");

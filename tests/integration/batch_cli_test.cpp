@@ -201,6 +201,55 @@ TEST(BatchCli, FailedAssetsExitOneAndAreListed) {
   EXPECT_TRUE(fs::exists(dir / "out/props/prop_0_LOD1.obj")) << "the others completed";
 }
 
+// A LOD that is not 10% smaller than the level before, and a triangle target the engine cannot reach (a
+// tetrahedron cannot lose a face), miss their budgets: said per LOD in the report, counted in the summary and
+// on the last line, and exit 1 under --strict.
+TEST(BatchCli, MissedBudgetsAreReportedAndFailStrictRuns) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_missed");
+  fs::create_directories(dir / "lib/a");
+  lodforge::io::save_asset(testlib::asset_of({lodforge::testing::make_uv_sphere(12, 16)}, lodforge::io::Format::obj),
+                           dir / "lib/a/sphere.obj");
+  lodforge::io::save_asset(testlib::asset_of({lodforge::testing::make_tetrahedron()}, lodforge::io::Format::obj),
+                           dir / "lib/a/tet.obj");
+  std::ofstream(dir / "config.json")
+      << R"({"version": 1, "classes": [{"name": "all", "match": ["**"],
+            "lods": [{"ratio": 0.95}, {"ratio": 0.5}, {"max_error": {"relative": 0.05}}]}]})";
+  const CliResult r = run_cli(run_args(dir / "config.json", dir / "lib", dir / "out"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const Json report = Json::parse(lodforge::io::read_file(dir / "out/report.json"));
+  std::size_t missed = 0;
+  for (const Json& a : report["assets"]) {
+    for (const Json& l : a["lods"]) {
+      const Json& b = l["budget"];
+      ASSERT_TRUE(b.is_object());
+      const bool is_missed = b["status"] == "missed";
+      missed += is_missed;
+      EXPECT_EQ(is_missed, !b["reasons"].empty());
+      if (a["path"] == "a/sphere.obj" && l["level"] == 1) {
+        EXPECT_TRUE(is_missed);
+        EXPECT_EQ(b["reasons"][0], "not 10% smaller than the source");
+      }
+      if (a["path"] == "a/sphere.obj" && l["level"] == 2) EXPECT_FALSE(is_missed) << b.dump();
+      if (a["path"] == "a/sphere.obj" && l["level"] == 3) {
+        EXPECT_FALSE(is_missed) << b.dump();
+        EXPECT_TRUE(b.contains("collapses_backed_off"));
+      }
+      if (a["path"] == "a/tet.obj" && l["level"] == 2) {
+        EXPECT_TRUE(is_missed);
+        EXPECT_NE(b["reasons"].dump().find("target not reached"), std::string::npos) << b.dump();
+      }
+    }
+  }
+  EXPECT_EQ(report["summary"]["lods_missed"], missed);
+  EXPECT_GE(missed, 3u);
+  EXPECT_NE(r.output.find(std::to_string(6 - missed) + " of 6 LOD(s) met their budget, " + std::to_string(missed) +
+                          " missed"),
+            std::string::npos)
+      << r.output;
+  const CliResult strict = run_cli(run_args(dir / "config.json", dir / "lib", dir / "out2", "--strict"));
+  EXPECT_EQ(strict.exit_code, 1) << strict.output;
+}
+
 TEST(BatchCli, BadGltfFailsWithTheMessageOfTheSingleFileCommands) {
   const fs::path dir = lodforge::testing::temp_dir("batch_cli_gltf_number_range");
   const testlib::Library lib = testlib::write_library(dir / "lib", 12);

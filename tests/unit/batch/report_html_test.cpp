@@ -219,7 +219,7 @@ TEST(ReportHtml, TableHasOneRowPerAssetLod) {
   const std::string html = render_report_html(sample_report());
   const auto rows = table_rows(html, "lods");
   EXPECT_EQ(rows.size(), 15U + 2U);  // 15 LODs, plus one row each for the failed and the skipped asset
-  for (const auto& row : rows) ASSERT_EQ(row.size(), 19U);
+  for (const auto& row : rows) ASSERT_EQ(row.size(), 20U);
   std::size_t chair_rows = 0;
   for (const auto& row : rows) chair_rows += row[kPath].text == "props/chair.obj";
   EXPECT_EQ(chair_rows, 3U);
@@ -261,8 +261,8 @@ TEST(ReportHtml, TableShowsTargetsAndPercentages) {
 TEST(ReportHtml, EveryHeaderSortsAndShowsADirection) {
   const std::string html = render_report_html(sample_report());
   const std::string_view head = between(between(html, "<table id=\"lods\"", "</table>"), "<thead>", "</thead>");
-  EXPECT_EQ(count_of(head, "<th "), 19U);
-  EXPECT_EQ(count_of(head, "data-type=\"num\"") + count_of(head, "data-type=\"text\""), 19U);
+  EXPECT_EQ(count_of(head, "<th "), 20U);
+  EXPECT_EQ(count_of(head, "data-type=\"num\"") + count_of(head, "data-type=\"text\""), 20U);
   EXPECT_EQ(count_of(head, "aria-sort=\"ascending\""), 1U);  // the worst-first rank
   EXPECT_NE(html.find("th[aria-sort=\"descending\"]::after"), std::string::npos);
   EXPECT_NE(html.find("addEventListener(\"click\""), std::string::npos);

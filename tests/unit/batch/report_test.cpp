@@ -66,7 +66,8 @@ TEST(Report, SummaryCountsStatusesLodsAndTriangles) {
                                 {"lods", 2},
                                 {"input_triangles", 200},
                                 {"output_triangles", 100},
-                                {"seconds", 1.5}}));
+                                {"seconds", 1.5},
+                                {"lods_missed", 0}}));
   EXPECT_TRUE(check_report(r).empty());
 }
 
