@@ -276,6 +276,7 @@ struct Job {
   std::vector<Mesh> sources;                             // per asset mesh, post-processed for output
   std::vector<std::vector<Mesh>> levels;                 // [level][mesh], post-processed
   std::vector<double> coverage;                          // MSFT_screencoverage, levels + 1 values
+  std::vector<bool> shows_previous;                      // per level: a near-copy of the one before, not stored
 };
 using JobPtr = std::shared_ptr<Job>;
 
@@ -387,7 +388,8 @@ Json target_triangles_json(const LodTarget& t, std::size_t source_triangles) {
 // 2%, an error budget held by measurement (collapses backed off to hold it are said, not a miss), and a LOD at
 // least 10% smaller than the level before (else it is close to a copy of it).
 Json budget_json(const LodTarget& t, std::size_t source_triangles, std::size_t triangles, std::size_t previous,
-                 std::size_t level, const std::set<std::string>& stops, bool error_met, std::size_t backed_off) {
+                 std::size_t level, const std::set<std::string>& stops, bool error_met, std::size_t backed_off,
+                 bool shows_previous) {
   Json reasons = Json::array();
   std::string why_stopped;
   for (const std::string& s : stops) {
@@ -405,8 +407,9 @@ Json budget_json(const LodTarget& t, std::size_t source_triangles, std::size_t t
                         (why_stopped.empty() ? std::string() : " (stopped: " + why_stopped + ")"));
     }
   }
-  if (triangles > 0 && 10 * triangles > 9 * previous) {
-    reasons.push_back("not 10% smaller than " + (level == 0 ? std::string("the source") : "LOD " + std::to_string(level)));
+  if (shows_previous || (triangles > 0 && 10 * triangles > 9 * previous)) {
+    reasons.push_back("not 10% smaller than " + (level == 0 ? std::string("the source") : "LOD " + std::to_string(level)) +
+                      (shows_previous ? ": shows its meshes" : ""));
   }
   Json out{{"status", reasons.empty() ? "met" : "missed"}, {"reasons", std::move(reasons)}};
   if (error_target) out["collapses_backed_off"] = backed_off;
@@ -582,6 +585,24 @@ class Pipeline {
     } else {
       job.sources = job.asset.meshes;
     }
+    // A level not at least 10% smaller than the one before is close to a copy of it: it shows that level's
+    // meshes instead (MSFT_lod points its node there; files mode writes no file for it).
+    auto triangles_of = [](const std::vector<Mesh>& meshes) {
+      std::size_t n = 0;
+      for (const Mesh& m : meshes) n += m.triangle_count();
+      return n;
+    };
+    job.shows_previous.assign(levels, false);
+    std::size_t before = triangles_of(job.sources);
+    for (std::size_t k = 0; k < levels; ++k) {
+      const std::size_t now = triangles_of(job.levels[k]);
+      if (now > 0 && 10 * now > 9 * before) {
+        job.levels[k] = k == 0 ? job.sources : job.levels[k - 1];
+        job.shows_previous[k] = true;
+      } else {
+        before = now;
+      }
+    }
   }
 
   void measure(Job& job) {
@@ -648,7 +669,7 @@ class Pipeline {
                       // the budget's samples where the bound could not be refined; qem: a ranking only.
                       {"error_bound_kind", verified ? (certified ? "certified" : "measured") : "qem"},
                       {"budget", budget_json(spec.target, job.triangles, triangles, k == 0 ? job.triangles : previous,
-                                             k, stops, verified && met, undone)},
+                                             k, stops, verified && met, undone, job.shows_previous[k])},
                       {"mean_rel", finite(e.mean_rel())},
                       {"rms_rel", finite(e.rms_rel())},
                       {"hausdorff_rel", finite(e.hausdorff_rel())},
@@ -692,11 +713,12 @@ class Pipeline {
     const io::Format format = job.asset.format;
     const GltfLods mode = config_.output.gltf_lods;
     if (is_gltf(format) && mode != GltfLods::files) {
-      io::LodChain chain{.levels = job.levels, .screen_coverage = job.coverage};
+      io::LodChain chain{.levels = job.levels, .screen_coverage = job.coverage, .shows_previous = job.shows_previous};
       io::save_gltf_lods(with_meshes(job.asset, job.sources), chain, staging / name);
     }
     if (!is_gltf(format) || mode != GltfLods::msft_lod) {
       for (std::size_t k = 0; k < job.levels.size(); ++k) {
+        if (job.shows_previous[k]) continue;  // a near-copy of the level before: no duplicate file
         io::save_asset(with_meshes(job.asset, job.levels[k]), staging / lod_file_name(name, k + 1));
       }
     }

@@ -867,6 +867,10 @@ void add_lods(const Asset& asset, const LodChain& lods, const std::vector<int>& 
   for (std::size_t k = 0; k < lods.levels.size(); ++k) {
     for (std::size_t m = 0; m < asset.meshes.size(); ++m) {
       if (json_mesh[m] < 0) continue;
+      if (k < lods.shows_previous.size() && lods.shows_previous[k]) {
+        lod_mesh[k][m] = k == 0 ? json_mesh[m] : lod_mesh[k - 1][m];
+        continue;
+      }
       const Mesh& lod = lods.levels[k][m];
       const OrderedJson& base = meshes[static_cast<std::size_t>(json_mesh[m])];
       OrderedJson jmesh = OrderedJson::object();

@@ -6,7 +6,8 @@
 //
 // What the file holds (MSFT_lod, github.com/KhronosGroup/glTF/tree/main/extensions/2.0/Vendor/MSFT_lod):
 // the asset's own document with its meshes as LOD0, exactly as save_asset writes it, plus one new glTF mesh
-// per LOD level and asset mesh ("<name>_LOD<k>", same materials and primitive layout). Every node that shows an
+// per LOD level and asset mesh ("<name>_LOD<k>", same materials and primitive layout), except for levels that
+// show the level before's meshes (LodChain::shows_previous). Every node that shows an
 // asset mesh gets, per level, a new root-less node showing that mesh's LOD (same transform, skin and morph
 // weights where the LOD mesh still has them), listed finest first in the node's `extensions.MSFT_lod.ids`, and
 // `extras.MSFT_screencoverage`; `extensionsUsed` names MSFT_lod. Readers without MSFT_lod show LOD0 only, which
@@ -28,6 +29,10 @@ struct LodChain {
   // the screen height the object covers while level k (0 = the asset's own meshes) is shown; below the last
   // entry the object is culled, so a last entry of 0 keeps the coarsest level forever.
   std::vector<double> screen_coverage;
+  // Per level (empty: none): true when level k shows the meshes of the level before (k = 0: the asset's own)
+  // instead of meshes of its own, so that a near-copy of a level is not stored twice; its LOD node is still
+  // written, so readers that expect a fixed number of levels get them. levels[k] should then equal them.
+  std::vector<bool> shows_previous;
 };
 
 // Writes `asset` (its meshes as LOD0) and `lods` as one .gltf (+ "<stem>.bin", + copied external images) or

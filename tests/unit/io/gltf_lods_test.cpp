@@ -128,6 +128,28 @@ TEST(GltfLods, NodesNameTheirLodsAndCoverage) {
   }
 }
 
+// A level marked shows_previous gets its LOD node but no mesh of its own: the node shows the level before's
+// (LOD0's for the first level), so a near-copy is not stored twice.
+TEST(GltfLods, NearCopyLevelsShowThePreviousMesh) {
+  const fs::path dir = testing::temp_dir("gltf_lods_reuse");
+  Asset a;
+  a.format = Format::obj;
+  a.meshes.push_back(testing::make_uv_sphere(12, 16));
+  LodChain chain = chain_of(a, {1, 2, 2}, {0.6, 0.5, 0.2, 0.0});
+  chain.shows_previous = {true, false, true};
+  save_gltf_lods(a, chain, dir / "reuse.glb");
+  const Json doc = document(dir / "reuse.glb");
+  ASSERT_EQ(doc["meshes"].size(), 2u) << "LOD0 and the one level of its own";
+  const Json& ids = doc["nodes"][0]["extensions"]["MSFT_lod"]["ids"];
+  ASSERT_EQ(ids.size(), 3u) << "every level keeps its node";
+  EXPECT_EQ(doc["nodes"][ids[0].get<std::size_t>()]["mesh"], 0);
+  EXPECT_EQ(doc["nodes"][ids[1].get<std::size_t>()]["mesh"], 1);
+  EXPECT_EQ(doc["nodes"][ids[2].get<std::size_t>()]["mesh"], 1);
+  if (const std::string why = validator_unavailable(); !why.empty()) GTEST_SKIP() << why;
+  const auto [code, out] = validate(dir / "reuse.glb");
+  EXPECT_EQ(code, 0) << out;
+}
+
 TEST(GltfLods, RejectsChainsThatDoNotFit) {
   const fs::path dir = testing::temp_dir("gltf_lods_errors");
   Asset a;
@@ -149,7 +171,7 @@ TEST(GltfLods, EmptyChainWritesThePlainAsset) {
   const fs::path dir = testing::temp_dir("gltf_lods_empty");
   Asset a;
   a.meshes.push_back(testing::make_tetrahedron());
-  save_gltf_lods(a, LodChain{.levels = {}, .screen_coverage = {0.0}}, dir / "x.glb");
+  save_gltf_lods(a, LodChain{.levels = {}, .screen_coverage = {0.0}, .shows_previous = {}}, dir / "x.glb");
   const Json doc = document(dir / "x.glb");
   EXPECT_EQ(doc["meshes"].size(), 1u);
   EXPECT_EQ(doc["nodes"][0]["extensions"]["MSFT_lod"]["ids"], Json::array());
