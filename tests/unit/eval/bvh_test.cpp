@@ -154,6 +154,28 @@ TEST(TriangleBvh, ClosestPointEqualsBruteForceOnRandomSoup) {
   }
 }
 
+TEST(TriangleBvh, WorkCountsOpenedNodesAndTestedTriangles) {
+  const std::vector<Vec3d> positions = {v3(0, 0, 0), v3(1, 0, 0), v3(0, 1, 0)};
+  const std::vector<std::uint32_t> indices = {0, 1, 2};
+  const TriangleBvh single(positions, indices);
+  BvhWork work;
+  single.closest_point(v3(0.2, 0.2, 1), kInvalidIndex, work);
+  EXPECT_EQ(work.nodes, 0u);  // the root is a leaf
+  EXPECT_EQ(work.triangles, 1u);
+  single.closest_point(v3(0.2, 0.2, 1), 0, work);  // the hint is measured; the tree adds nothing closer
+  EXPECT_EQ(work.triangles, 2u);
+
+  const Soup soup = random_soup(500);
+  const TriangleBvh bvh(soup.positions, soup.indices);
+  BvhWork total;
+  for (int q = 0; q < 50; ++q) {
+    bvh.closest_point(v3(uniform(q, 0, 1), uniform(q + 99, 0, 1), 0.5), kInvalidIndex, total);
+  }
+  EXPECT_GT(total.nodes, 50u);
+  EXPECT_GT(total.triangles, 50u);
+  EXPECT_LT(total.triangles, 50u * 500u / 4) << "the tree prunes most triangles";
+}
+
 TEST(TriangleBvh, EveryBoxContainsItsSubtreeAndEveryTriangleIsInOneLeaf) {
   const Soup soup = random_soup(800);
   const TriangleBvh bvh(soup.positions, soup.indices);
