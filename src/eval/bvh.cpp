@@ -256,7 +256,17 @@ TrianglePoint closest_point_on_triangle(const Vec3d& p, const Vec3d& a, const Ve
   if (!(va > 0 && vb > 0 && vc > 0)) return closest_on_edges(p, a, b, c);
   const double denom = va + vb + vc;
   const double v = vb / denom, w = vc / denom;
-  return {a + ab * v + ac * w, {{1 - v - w, v, w}}};
+  // The point itself is p moved onto the plane, whose normal comes from the corner opposite the longest edge:
+  // there the two edges are the shorter ones and at least 60 degrees apart, so a sliver's normal keeps full
+  // precision. (a + ab v + ac w puts a point on a 1:10000 sliver ~1e-8 of its size off it: va, vb, vc are
+  // differences of nearly equal products.)
+  const Vec3d bc = c - b;
+  const double ab2 = dot(ab, ab), ac2 = dot(ac, ac), bc2 = dot(bc, bc);
+  const Vec3d& o = bc2 >= ab2 && bc2 >= ac2 ? a : (ac2 >= ab2 ? b : c);
+  const Vec3d n = bc2 >= ab2 && bc2 >= ac2 ? cross(ab, ac) : (ac2 >= ab2 ? cross(bc, a - b) : cross(a - c, bc));
+  const double nn = dot(n, n);
+  if (!(nn > 0) || !std::isfinite(nn)) return {a + ab * v + ac * w, {{1 - v - w, v, w}}};  // under/overflow
+  return {p - n * (dot(p - o, n) / nn), {{1 - v - w, v, w}}};
 }
 
 TriangleBvh::TriangleBvh(std::span<const Vec3d> positions, std::span<const std::uint32_t> indices)

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <functional>
@@ -82,6 +83,22 @@ TEST(ClosestPointOnTriangle, DegenerateTrianglesGiveTheClosestPointOfTheirSegmen
   const TrianglePoint tp = closest_point_on_triangle(v3(4, 6, 3), p, p, p);
   expect_vec_near(tp.point, p);
   EXPECT_NEAR(tp.barycentric[0] + tp.barycentric[1] + tp.barycentric[2], 1.0, 1e-12);
+}
+
+TEST(ClosestPointOnTriangle, PointsOnASliverAreAtDistanceZero) {
+  // A 1:10000 sliver lying across the axes: from its sharp corner the region tests subtract nearly equal
+  // products, so a point built on the triangle used to come back ~1e-8 away from it.
+  const Vec3d a = v3(0.1, 0.2, 0.3), b = v3(1.1, 0.9, 1.2), c = v3(1.1001, 0.9, 1.2002);
+  double worst = 0;
+  for (int i = 1; i < 100; ++i) {
+    for (int j = 1; i + j < 100; j += 7) {
+      const double u = i / 100.0, v = j / 100.0;
+      const Vec3d p = a + (b - a) * u + (c - a) * v;
+      const TrianglePoint tp = closest_point_on_triangle(p, a, b, c);
+      worst = std::max(worst, length(tp.point - p));
+    }
+  }
+  EXPECT_LT(worst, 1e-14);
 }
 
 // Counter-based uniform in [lo, hi): portable, unlike std distributions.
