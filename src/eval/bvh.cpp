@@ -256,7 +256,17 @@ TrianglePoint closest_point_on_triangle(const Vec3d& p, const Vec3d& a, const Ve
   if (!(va > 0 && vb > 0 && vc > 0)) return closest_on_edges(p, a, b, c);
   const double denom = va + vb + vc;
   const double v = vb / denom, w = vc / denom;
-  return {a + ab * v + ac * w, {{1 - v - w, v, w}}};
+  // The point itself is p moved onto the plane, whose normal comes from the corner opposite the longest edge:
+  // there the two edges are the shorter ones and at least 60 degrees apart, so a sliver's normal keeps full
+  // precision. (a + ab v + ac w puts a point on a 1:10000 sliver ~1e-8 of its size off it: va, vb, vc are
+  // differences of nearly equal products.)
+  const Vec3d bc = c - b;
+  const double ab2 = dot(ab, ab), ac2 = dot(ac, ac), bc2 = dot(bc, bc);
+  const Vec3d& o = bc2 >= ab2 && bc2 >= ac2 ? a : (ac2 >= ab2 ? b : c);
+  const Vec3d n = bc2 >= ab2 && bc2 >= ac2 ? cross(ab, ac) : (ac2 >= ab2 ? cross(bc, a - b) : cross(a - c, bc));
+  const double nn = dot(n, n);
+  if (!(nn > 0) || !std::isfinite(nn)) return {a + ab * v + ac * w, {{1 - v - w, v, w}}};  // under/overflow
+  return {p - n * (dot(p - o, n) / nn), {{1 - v - w, v, w}}};
 }
 
 TriangleBvh::TriangleBvh(std::span<const Vec3d> positions, std::span<const std::uint32_t> indices)
@@ -307,7 +317,7 @@ Bounds3 TriangleBvh::bounds() const {
   return b;
 }
 
-BvhHit TriangleBvh::search(const Vec3d& p, BvhHit best) const {
+BvhHit TriangleBvh::search(const Vec3d& p, BvhHit best, BvhWork& work) const {
   if (empty()) return best;
   struct Entry {
     std::uint32_t index, count;  // a child reference, as in BvhNode
@@ -322,6 +332,7 @@ BvhHit TriangleBvh::search(const Vec3d& p, BvhHit best) const {
     // Re-checked on pop: the best distance may have shrunk since this entry was pushed.
     if (!(e.dist_sq < best.distance_sq)) continue;
     if (e.count > 0) {
+      work.triangles += e.count;
       for (std::uint32_t s = e.index; s < e.index + e.count; ++s) {
         const std::array<Vec3d, 3>& t = slot_corners_[s];
         const TrianglePoint tp = closest_point_on_triangle(p, t[0], t[1], t[2]);
@@ -335,6 +346,7 @@ BvhHit TriangleBvh::search(const Vec3d& p, BvhHit best) const {
       }
       continue;
     }
+    ++work.nodes;
     const BvhNode& n = nodes_[e.index];
     const Entry c0{n.child[0], n.count[0], box_dist_sq(n.min[0], n.max[0], p)};
     const Entry c1{n.child[1], n.count[1], box_dist_sq(n.min[1], n.max[1], p)};
@@ -350,21 +362,31 @@ BvhHit TriangleBvh::search(const Vec3d& p, BvhHit best) const {
   return best;
 }
 
-BvhHit TriangleBvh::closest_point(const Vec3d& p) const { return search(p, BvhHit{}); }
+BvhHit TriangleBvh::closest_point(const Vec3d& p) const {
+  BvhWork work;
+  return search(p, BvhHit{}, work);
+}
 
 BvhHit TriangleBvh::closest_point(const Vec3d& p, std::uint32_t hint) const {
-  if (hint >= slot_of_.size() || slot_of_[hint] == kInvalidIndex) return search(p, BvhHit{});
+  BvhWork work;
+  return closest_point(p, hint, work);
+}
+
+BvhHit TriangleBvh::closest_point(const Vec3d& p, std::uint32_t hint, BvhWork& work) const {
+  if (hint >= slot_of_.size() || slot_of_[hint] == kInvalidIndex) return search(p, BvhHit{}, work);
   const std::array<Vec3d, 3>& t = slot_corners_[slot_of_[hint]];
   const TrianglePoint tp = closest_point_on_triangle(p, t[0], t[1], t[2]);
+  ++work.triangles;
   const double d = dist_sq(p, tp.point);
-  if (!(d < INFINITY)) return search(p, BvhHit{});  // NaN or overflow: no useful bound
-  return search(p, BvhHit{hint, tp.point, tp.barycentric, d});
+  if (!(d < INFINITY)) return search(p, BvhHit{}, work);  // NaN or overflow: no useful bound
+  return search(p, BvhHit{hint, tp.point, tp.barycentric, d}, work);
 }
 
 BvhHit TriangleBvh::closest_point_within(const Vec3d& p, double max_distance) const {
   BvhHit start;
   start.distance_sq = max_distance > 0 ? max_distance * max_distance : 0.0;
-  return search(p, start);
+  BvhWork work;
+  return search(p, start, work);
 }
 
 TriangleBvh make_triangle_bvh(const Mesh& mesh) {

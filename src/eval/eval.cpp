@@ -144,6 +144,7 @@ struct BlockSums {
   double sum = 0, sum_sq = 0, max = 0;
   double angle_sum = 0;
   std::size_t angle_count = 0;
+  BvhWork work;
 };
 
 // One direction's raw material: sums for pooling, per-sample values for percentiles.
@@ -153,6 +154,7 @@ struct Direction {
   std::size_t count = 0;
   double angle_sum = 0;
   std::vector<double> angles;  // valid normal deviations, in sample order
+  BvhWork work;
 };
 
 Direction measure(const Surface& from, const Surface& to, std::size_t area_samples, std::uint64_t stream,
@@ -186,7 +188,7 @@ Direction measure(const Surface& from, const Surface& to, std::size_t area_sampl
         BlockSums& sums = vertex_sums[block];
         const std::size_t end = std::min(nv, (block + 1) * kBlockSize);
         for (std::size_t i = block * kBlockSize; i < end; ++i) {
-          const BvhHit hit = to.bvh.closest_point(from.positions[from.vertices[i]], hint);
+          const BvhHit hit = to.bvh.closest_point(from.positions[from.vertices[i]], hint, sums.work);
           assert(hit.found());  // finite point, non-empty tree
           hint = hit.triangle;
           const double d = std::sqrt(hit.distance_sq);
@@ -201,7 +203,7 @@ Direction measure(const Surface& from, const Surface& to, std::size_t area_sampl
       const std::size_t end = std::min(n, (ab + 1) * kBlockSize);
       for (std::size_t i = ab * kBlockSize; i < end; ++i) {
         const Sample s = area_sample(from, stream, i, n);
-        const BvhHit hit = to.bvh.closest_point(s.point, hint);
+        const BvhHit hit = to.bvh.closest_point(s.point, hint, sums.work);
         assert(hit.found());
         hint = hit.triangle;
         const double d = std::sqrt(hit.distance_sq);
@@ -225,6 +227,7 @@ Direction measure(const Surface& from, const Surface& to, std::size_t area_sampl
     vertex_total.sum += b.sum;
     vertex_total.sum_sq += b.sum_sq;
     vertex_total.max = std::max(vertex_total.max, b.max);
+    out.work += b.work;
   }
   for (const BlockSums& b : area_sums) {
     area_total.sum += b.sum;
@@ -232,6 +235,7 @@ Direction measure(const Surface& from, const Surface& to, std::size_t area_sampl
     area_total.max = std::max(area_total.max, b.max);
     area_total.angle_sum += b.angle_sum;
     area_total.angle_count += b.angle_count;
+    out.work += b.work;
   }
 
   out.stats.max = std::max(vertex_total.max, area_total.max);
@@ -281,6 +285,8 @@ EvalResult evaluate_in_arena(const Mesh& original, const Mesh& simplified, const
     r.rms = std::sqrt((ab.sum_sq + ba.sum_sq) / static_cast<double>(count));
   }
   r.diagonal = compute_bounds(original).diagonal();
+  r.work = ab.work;
+  r.work += ba.work;
 
   if (const std::size_t count = ab.angles.size() + ba.angles.size(); count > 0) {
     r.normal_deviation_mean_deg = (ab.angle_sum + ba.angle_sum) / static_cast<double>(count);

@@ -39,6 +39,18 @@ struct BvhHit {
   double distance() const { return std::sqrt(distance_sq); }
 };
 
+// Work done by queries: a cost measure that does not depend on the machine (for tests and benchmarks).
+struct BvhWork {
+  std::uint64_t nodes = 0;      // internal nodes opened (their two child boxes measured)
+  std::uint64_t triangles = 0;  // point-triangle closest-point computations
+
+  BvhWork& operator+=(const BvhWork& o) {
+    nodes += o.nodes;
+    triangles += o.triangles;
+    return *this;
+  }
+};
+
 // One internal node of a TriangleBvh: the boxes of both children side by side, so that one 64-byte line
 // gives everything needed to decide where to descend. Boxes are floats rounded outward, so they always contain
 // their triangles. Child i is the node child[i] when count[i] == 0, else a leaf holding the triangle slots
@@ -69,6 +81,8 @@ class TriangleBvh {
   // queries) measured first so that most of the tree is pruned at once. May name a different triangle only
   // when several are equally close. An out-of-range or left-out hint is ignored.
   BvhHit closest_point(const Vec3d& p, std::uint32_t hint) const;
+  // The same, adding the query's work to `work` (what tests and benchmarks count instead of time).
+  BvhHit closest_point(const Vec3d& p, std::uint32_t hint, BvhWork& work) const;
   // The closest point strictly closer than `max_distance`, or no hit. Cheap when nothing is near.
   BvhHit closest_point_within(const Vec3d& p, double max_distance) const;
 
@@ -88,7 +102,7 @@ class TriangleBvh {
  private:
   // Ordered depth-first descent (nearer child first, boxes no closer than the best so far skipped), keeping
   // `best` unless something strictly closer is found.
-  BvhHit search(const Vec3d& p, BvhHit best) const;
+  BvhHit search(const Vec3d& p, BvhHit best, BvhWork& work) const;
 
   Root root_;
   std::vector<BvhNode> nodes_;

@@ -11,6 +11,7 @@
 #include <string>
 
 #include "lodforge/core/mesh.hpp"
+#include "lodforge/eval/bvh.hpp"
 
 namespace lodforge {
 
@@ -45,6 +46,8 @@ struct EvalResult {
   double rms_rel() const { return diagonal > 0 ? rms / diagonal : 0; }
   // Face-normal angle (see OneSided), pooled over both directions' area samples.
   double normal_deviation_mean_deg = 0, normal_deviation_p95_deg = 0;
+  // Closest-point work of both directions (a machine-independent cost; the same for any thread count).
+  BvhWork work;
   // Empty unless a mesh has no triangles: then distances to it are +infinity (never NaN), and this says why.
   std::string note;
 };

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <functional>
@@ -84,6 +85,22 @@ TEST(ClosestPointOnTriangle, DegenerateTrianglesGiveTheClosestPointOfTheirSegmen
   EXPECT_NEAR(tp.barycentric[0] + tp.barycentric[1] + tp.barycentric[2], 1.0, 1e-12);
 }
 
+TEST(ClosestPointOnTriangle, PointsOnASliverAreAtDistanceZero) {
+  // A 1:10000 sliver lying across the axes: from its sharp corner the region tests subtract nearly equal
+  // products, so a point built on the triangle used to come back ~1e-8 away from it.
+  const Vec3d a = v3(0.1, 0.2, 0.3), b = v3(1.1, 0.9, 1.2), c = v3(1.1001, 0.9, 1.2002);
+  double worst = 0;
+  for (int i = 1; i < 100; ++i) {
+    for (int j = 1; i + j < 100; j += 7) {
+      const double u = i / 100.0, v = j / 100.0;
+      const Vec3d p = a + (b - a) * u + (c - a) * v;
+      const TrianglePoint tp = closest_point_on_triangle(p, a, b, c);
+      worst = std::max(worst, length(tp.point - p));
+    }
+  }
+  EXPECT_LT(worst, 1e-14);
+}
+
 // Counter-based uniform in [lo, hi): portable, unlike std distributions.
 double uniform(std::uint64_t key, double lo, double hi) {
   std::uint64_t x = key * 0x9E3779B97F4A7C15ull + 0x632BE59BD9B4E019ull;
@@ -152,6 +169,28 @@ TEST(TriangleBvh, ClosestPointEqualsBruteForceOnRandomSoup) {
     const BvhHit hinted = bvh.closest_point(p, static_cast<std::uint32_t>((q * 37) % 1500));
     EXPECT_NEAR(hinted.distance_sq, want.distance_sq, 1e-12 * want.distance_sq) << "query " << q;
   }
+}
+
+TEST(TriangleBvh, WorkCountsOpenedNodesAndTestedTriangles) {
+  const std::vector<Vec3d> positions = {v3(0, 0, 0), v3(1, 0, 0), v3(0, 1, 0)};
+  const std::vector<std::uint32_t> indices = {0, 1, 2};
+  const TriangleBvh single(positions, indices);
+  BvhWork work;
+  single.closest_point(v3(0.2, 0.2, 1), kInvalidIndex, work);
+  EXPECT_EQ(work.nodes, 0u);  // the root is a leaf
+  EXPECT_EQ(work.triangles, 1u);
+  single.closest_point(v3(0.2, 0.2, 1), 0, work);  // the hint is measured; the tree adds nothing closer
+  EXPECT_EQ(work.triangles, 2u);
+
+  const Soup soup = random_soup(500);
+  const TriangleBvh bvh(soup.positions, soup.indices);
+  BvhWork total;
+  for (int q = 0; q < 50; ++q) {
+    bvh.closest_point(v3(uniform(q, 0, 1), uniform(q + 99, 0, 1), 0.5), kInvalidIndex, total);
+  }
+  EXPECT_GT(total.nodes, 50u);
+  EXPECT_GT(total.triangles, 50u);
+  EXPECT_LT(total.triangles, 50u * 500u / 4) << "the tree prunes most triangles";
 }
 
 TEST(TriangleBvh, EveryBoxContainsItsSubtreeAndEveryTriangleIsInOneLeaf) {

@@ -148,6 +148,16 @@ TEST(Evaluate, ResultIsBitIdenticalForAnyThreadCount) {
   EXPECT_NE(evaluate(a, b, other).a_to_b.mean, r1.a_to_b.mean);
 }
 
+TEST(Evaluate, WorkIsTheSameForAnyThreadCount) {
+  const Mesh a = make_uv_sphere(24, 32);
+  const Mesh b = transformed(make_uv_sphere(9, 13), 0.97, {{0.01, 0, 0}});
+  const EvalResult r1 = evaluate(a, b, {.samples = 30000, .threads = 1});
+  const EvalResult r2 = evaluate(a, b, {.samples = 30000, .threads = 2});
+  EXPECT_GT(r1.work.triangles, 60000u);
+  EXPECT_EQ(r1.work.nodes, r2.work.nodes);
+  EXPECT_EQ(r1.work.triangles, r2.work.triangles);
+}
+
 TEST(Evaluate, PolygonsAreFanTriangulated) {
   // make_grid's triangle split is the fan of its quads, so both must sample exactly the same points.
   const Mesh target = transformed(make_grid(3, 3, false), 1.0, {{0.1, 0.2, 0.3}});
