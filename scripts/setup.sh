@@ -3,24 +3,33 @@
 # Idempotent: a second run installs nothing and rebuilds only what changed.
 #   BUILD_DIR   build folder (default: build)
 #   BUILD_TYPE  CMake build type (default: Release)
+#   TARGETS     the targets to build, space-separated (default: all)
+#   SANITIZE    1: the instrumented build instead (docs/fuzzing.md), into SANITIZE_BUILD_DIR (default build-asan):
+#               ASan + UBSan at -O1 with asserts on, by clang with libFuzzer's coverage hooks and the fuzz
+#               harnesses (clang and its runtimes are installed if missing), or by g++ where that fails
 set -euo pipefail
 cd "$(dirname "$0")/.."
+source scripts/lib.sh
 
 BUILD_DIR=${BUILD_DIR:-build}
 BUILD_TYPE=${BUILD_TYPE:-Release}
 PACKAGES=(cmake g++ ninja-build pkg-config libtbb-dev libeigen3-dev libopenmesh-dev libtinygltf-dev
           nlohmann-json3-dev libgtest-dev libgmock-dev libbenchmark-dev libmeshoptimizer-dev libcli11-dev libstb-dev)
 
-missing=()
-for p in "${PACKAGES[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if [ ${#missing[@]} -gt 0 ]; then
-  echo "setup: installing ${missing[*]}"
-  SUDO=""
-  [ "$(id -u)" -ne 0 ] && SUDO="sudo"
-  $SUDO apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+install_packages "${PACKAGES[@]}"
+
+cmake_options=(-DCMAKE_BUILD_TYPE="$BUILD_TYPE")
+if [ "${SANITIZE:-0}" = 1 ]; then
+  BUILD_DIR=${SANITIZE_BUILD_DIR:-build-asan}
+  install_packages clang libclang-rt-dev || echo "setup: warning: could not install clang libclang-rt-dev"
+  # One build for the sanitizer tests and the fuzzers: the parts compile once for both.
+  cmake_options=(-DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g" -DLODFORGE_BUILD_BENCH=OFF)
+  if clang_has_libfuzzer; then
+    cmake_options+=(-DCMAKE_CXX_COMPILER=clang++ -DLODFORGE_BUILD_FUZZ=ON)
+  else
+    echo "setup: clang++ with the libFuzzer runtime is not available: sanitizer build with g++, without fuzzers"
+    cmake_options+=(-DLODFORGE_SANITIZE=ON)
+  fi
 fi
 
 # The Khronos glTF validator (npm), used by the tests on written files. Optional: tests skip without node.
@@ -38,5 +47,6 @@ else
 fi
 
 JOBS=${JOBS:-$(nproc)}
-cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE="$BUILD_TYPE" >/dev/null
-cmake --build "$BUILD_DIR" -j "$JOBS"
+read -r -a targets <<< "${TARGETS:-}"
+cmake -S . -B "$BUILD_DIR" -G Ninja "${cmake_options[@]}" >/dev/null
+cmake --build "$BUILD_DIR" -j "$JOBS" ${targets[@]:+--target "${targets[@]}"}

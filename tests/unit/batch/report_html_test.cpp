@@ -272,7 +272,8 @@ TEST(ReportHtml, WorstAssetsChartKeepsTenLargest) {
   json report = sample_report();
   for (int i = 0; i < 12; ++i) {
     const std::string path = "bulk/" + std::string(60, 'x') + "/asset_" + std::to_string(i) + ".obj";
-    report["assets"].push_back(asset(path, "bulk", {lod(1, 0.5, 0.001, 0.2 + 0.01 * i)}));
+    // json::array: clang makes a braced lone json a copy of it, gcc an array holding it.
+    report["assets"].push_back(asset(path, "bulk", json::array({lod(1, 0.5, 0.001, 0.2 + 0.01 * i)})));
   }
   const std::string html = render_report_html(report);
   const std::string_view chart = between(html, "aria-label=\"worst assets by Hausdorff distance\"", "</svg>");
