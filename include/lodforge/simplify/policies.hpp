@@ -49,16 +49,16 @@ struct StopState {
 struct CollapsePolicies {
   // Where the survivor of a free edge goes (pinned endpoints still keep theirs); nullopt: the built-in
   // placement (the quadric's minimiser). `candidate.cost` and `.error` are not yet filled in.
-  std::function<std::optional<Vec3d>(const CollapseCandidate&)> placement;
+  std::function<std::optional<Vec3d>(const CollapseCandidate&)> placement{};
   // The ordering key, lower first; negative values count as 0. The error budget still uses the built-in error.
-  std::function<double(const CollapseCandidate&)> cost;
+  std::function<double(const CollapseCandidate&)> cost{};
   // false refuses the collapse (counted as Veto::filter); asked after the built-in checks passed, with the
   // candidate's position (its cost and error are left 0).
-  std::function<bool(const CollapseCandidate&)> filter;
+  std::function<bool(const CollapseCandidate&)> filter{};
   // true stops the engine before the next round (besides the target and the error budget).
-  std::function<bool(const StopState&)> stop;
+  std::function<bool(const StopState&)> stop{};
   // Called for every committed collapse, in commit order, from the thread that runs the engine.
-  std::function<void(const CollapseEvent&)> on_collapse;
+  std::function<void(const CollapseEvent&)> on_collapse{};
 
   bool any() const { return placement || cost || filter || stop || on_collapse; }
 };

@@ -111,7 +111,8 @@ TEST(ErrorBudget, WithinAQuarterOfTheOraclePrefix) {
   plain.verify_budget = false;
   std::size_t oracle_triangles = sphere.triangle_count();
   for (std::size_t k = 1;; ++k) {
-    const CollapsePolicies stop_at{.stop = [k](const StopState& s) { return s.collapses >= k; }};
+    CollapsePolicies stop_at;
+    stop_at.stop = [k](const StopState& s) { return s.collapses >= k; };
     const SimplifyResult prefix = simplify(sphere, plain, stop_at);
     if (prefix.collapses < k) break;  // the engine's run ended
     if (evaluate(sphere, prefix.mesh, {.samples = 20000}).hausdorff > budget * diag) break;

@@ -78,7 +78,9 @@ TEST(CollapsePolicies, ObserverSeesEveryCollapseInOrder) {
     double max_error = 0.0;
     for (std::size_t i = 0; i < events.size(); ++i) {
       EXPECT_NE(events[i].victim, events[i].survivor);
-      if (i > 0) EXPECT_LT(events[i].triangles, events[i - 1].triangles);
+      if (i > 0) {
+        EXPECT_LT(events[i].triangles, events[i - 1].triangles);
+      }
       max_error = std::max(max_error, events[i].error);
     }
     EXPECT_EQ(events.back().triangles, r.triangles_after);
