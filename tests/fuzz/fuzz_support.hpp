@@ -52,13 +52,22 @@ inline const std::filesystem::path& scratch_dir() {
   return dir.path();
 }
 
-// Writes the input to scratch_dir()/name, for the readers that take a path (glTF, load_config).
+// Writes the input to scratch_dir()/in/name, for the readers that take a path (glTF, load_config). URIs in it
+// resolve inside in/, never to what output_path() files earlier inputs left, so each input runs the same alone.
 inline std::filesystem::path write_input(std::string_view name, std::string_view bytes) {
-  const std::filesystem::path path = scratch_dir() / name;
+  const std::filesystem::path path = scratch_dir() / "in" / name;
+  std::filesystem::create_directories(path.parent_path());
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
   out.close();
   if (!out) fail("cannot write " + path.string());
+  return path;
+}
+
+// Where a harness writes what it accepted (scratch_dir()/out/name).
+inline std::filesystem::path output_path(std::string_view name) {
+  const std::filesystem::path path = scratch_dir() / "out" / name;
+  std::filesystem::create_directories(path.parent_path());
   return path;
 }
 

@@ -1,6 +1,6 @@
 // libFuzzer harness: load_asset on a GLB (binary container) file, then save_asset to the
 // same format if it was accepted (fuzz_support.hpp). The glTF reader takes a path, so each input is written to
-// a scratch folder first; URIs in it resolve inside that folder.
+// a scratch folder first (fuzz_support.hpp, write_input).
 #include "fuzz_support.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
@@ -15,7 +15,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   fuzz::check_asset(asset);
   try {
-    io::save_asset(asset, fuzz::scratch_dir() / "output.glb");
+    io::save_asset(asset, fuzz::output_path("output.glb"));
   } catch (const io::IoError&) {
     // save_asset's documented error
   }
