@@ -424,7 +424,7 @@ void CollapseMesh::setup(Parallel& parallel) {
       }
       // Painted priority π scales the whole quadric (faces and constraint planes, and its area, so that the
       // error bound E / W stays an unpainted distance): importance propagates into merged vertices and pulls
-      // placement towards the painted side (ALGORITHMS.md 6). The factor is π², so that π acts on distances:
+      // placement towards the painted side. The factor is π², so that π acts on distances:
       // a region painted π is held to about 1/π of the distance error. With π itself the greedy order (E
       // grows like edge length⁶ on a smooth surface) moves the painted share of a sphere half painted 10 only
       // from 50% to 68% at 10% of the triangles; with π², 70% and more. 0 leaves the vertex free.

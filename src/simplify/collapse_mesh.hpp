@@ -38,7 +38,7 @@
 
 namespace lodforge::collapse {
 
-// What a vertex may do, decided once from topology, wedges, materials and options (ALGORITHMS.md 2.3).
+// What a vertex may do, decided once from topology, wedges, materials and options.
 // A corner's *key* is its wedge and its face's material (in permissive mode wedges of one vertex that differ
 // only in normals/tangents share a key): a vertex with two keys sits on a seam (UV seam, hard edge or
 // material boundary), with three or more where seams meet.
@@ -313,7 +313,7 @@ class CollapseMesh {
   std::vector<std::uint32_t> pool_;
   std::size_t alive_faces_ = 0;
 
-  // --- seams, attributes, skin (ALGORITHMS.md 2, 6) ---
+  // --- seams, attributes, skin ---
   std::vector<std::uint32_t> tri_key_;  // key of each corner when it is not simply the wedge (see VertexKind)
   AttributeLayout layout_;                 // attribute_layout() (metric/attribute_quadric.hpp); dims 0: geometry only
   std::vector<AttributeQuadric> wq_;       // per wedge

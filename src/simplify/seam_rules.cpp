@@ -254,7 +254,7 @@ void CollapseMesh::setup_attributes(Parallel& parallel) {
 }
 
 // The attribute quadrics the merged vertex of edge (u, v) will have, reduced to position space (Hoppe 1999;
-// ALGORITHMS.md 2.3 "position optimisation with several wedges"): the wedge pairs across the edge's faces
+// position optimisation with several wedges): the wedge pairs across the edge's faces
 // merge, every other wedge of u and v counts alone. The geometric quadric is counted once, by the caller.
 void CollapseMesh::add_attribute_quadrics(std::uint32_t u, std::uint32_t v, Quadric& q) const {
   const auto dims = static_cast<std::size_t>(layout_.dims);
@@ -511,7 +511,7 @@ bool CollapseMesh::uv_ok(std::uint32_t a, std::uint32_t b, const Check& c, const
   return true;
 }
 
-// ALGORITHMS.md 2.4 rule 1: a and b may merge only when their dominant joints agree or their weight vectors
+// Skinning rule: a and b may merge only when their dominant joints agree or their weight vectors
 // are close (the joint's blend band). Checking every face of the merged vertex instead (no new triangle may
 // join distant weights) was tried: on the skinned corpus it vetoes so many cheap collapses that the bind-pose
 // distance error grows 3-40x (CesiumMan at 25%: 0.25% of the diagonal against 0.04%).

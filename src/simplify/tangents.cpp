@@ -6,7 +6,7 @@
 
 namespace lodforge::collapse {
 
-// Tangents of the LOD from its normals and UV set 0 (ALGORITHMS.md 2.4: tangents are not simplified):
+// Tangents of the LOD from its normals and UV set 0 (tangents are not simplified):
 // per-triangle UV-space derivatives accumulated per wedge (area-weighted, as MikkTSpace does before its
 // splitting rules), Gram-Schmidt against the wedge normal, handedness from the bitangent. A wedge without
 // usable UVs keeps its carried tangent.
