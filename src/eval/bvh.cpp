@@ -24,6 +24,10 @@ constexpr std::uint32_t kMaxLeafSize = 4;
 constexpr int kMaxDepth = 60;
 constexpr int kStackSize = kMaxDepth + 2;
 
+// A triangle is a sliver for closest_point_on_triangle when the squared sine of its angle at the first corner is
+// below this (~0.06 degrees).
+constexpr double kSliverSinSq = 1e-6;
+
 double dist_sq(const Vec3d& a, const Vec3d& b) {
   const Vec3d d = a - b;
   return dot(d, d);
@@ -256,17 +260,22 @@ TrianglePoint closest_point_on_triangle(const Vec3d& p, const Vec3d& a, const Ve
   if (!(va > 0 && vb > 0 && vc > 0)) return closest_on_edges(p, a, b, c);
   const double denom = va + vb + vc;
   const double v = vb / denom, w = vc / denom;
-  // The point itself is p moved onto the plane, whose normal comes from the corner opposite the longest edge:
-  // there the two edges are the shorter ones and at least 60 degrees apart, so a sliver's normal keeps full
-  // precision. (a + ab v + ac w puts a point on a 1:10000 sliver ~1e-8 of its size off it: va, vb, vc are
-  // differences of nearly equal products.)
+  // On a sliver (an angle under ~0.06 degrees at a) v and w are ratios of differences of nearly equal products,
+  // and a + ab v + ac w puts a point on a 1:10000 sliver 1e-8 of its size off it. There the point is p moved
+  // onto the plane instead, with the normal from the corner opposite the longest edge: its two edges are the
+  // shorter ones and at least 60 degrees apart, so the normal keeps full precision. (Elsewhere the formula
+  // stays, so that which of two coincident triangles is nearer by an ulp does not change.)
+  const Vec3d n = cross(ab, ac);
+  const double ab2 = dot(ab, ab), ac2 = dot(ac, ac);
+  if (!(dot(n, n) < kSliverSinSq * ab2 * ac2)) return {a + ab * v + ac * w, {{1 - v - w, v, w}}};
   const Vec3d bc = c - b;
-  const double ab2 = dot(ab, ab), ac2 = dot(ac, ac), bc2 = dot(bc, bc);
-  const Vec3d& o = bc2 >= ab2 && bc2 >= ac2 ? a : (ac2 >= ab2 ? b : c);
-  const Vec3d n = bc2 >= ab2 && bc2 >= ac2 ? cross(ab, ac) : (ac2 >= ab2 ? cross(bc, a - b) : cross(a - c, bc));
-  const double nn = dot(n, n);
-  if (!(nn > 0) || !std::isfinite(nn)) return {a + ab * v + ac * w, {{1 - v - w, v, w}}};  // under/overflow
-  return {p - n * (dot(p - o, n) / nn), {{1 - v - w, v, w}}};
+  const double bc2 = dot(bc, bc);
+  const bool at_a = bc2 >= ab2 && bc2 >= ac2;
+  const Vec3d& o = at_a ? a : (ac2 >= ab2 ? b : c);
+  const Vec3d m = at_a ? n : (ac2 >= ab2 ? cross(bc, a - b) : cross(a - c, bc));
+  const double mm = dot(m, m);
+  if (!(mm > 0) || !std::isfinite(mm)) return {a + ab * v + ac * w, {{1 - v - w, v, w}}};  // under/overflow
+  return {p - m * (dot(p - o, m) / mm), {{1 - v - w, v, w}}};
 }
 
 TriangleBvh::TriangleBvh(std::span<const Vec3d> positions, std::span<const std::uint32_t> indices)
