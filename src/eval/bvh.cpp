@@ -5,8 +5,11 @@
 //     Voronoi regions of the three vertices, three edges and the face, told apart with six dot products.
 //   - Wald, "On fast construction of SAH-based bounding volume hierarchies" (IEEE RT 2007): binned surface
 //     area heuristic over triangle centroids.
-//   - Ordered depth-first traversal with box-distance pruning (nearer child first; a box no closer than the
-//     best triangle so far is skipped), as in Metro's AABB-tree queries (Cignoni, Rocchini & Scopigno 1998).
+//   - Ordered depth-first traversal with box-distance pruning (nearer child first; a box not closer than the
+//     best triangle so far, by more than rounding, is skipped), as in Metro's AABB-tree queries (Cignoni,
+//     Rocchini & Scopigno 1998).
+//   - A walk across edges from a start triangle towards the query (Devillers, Pion & Teillaud, "Walking in a
+//     triangulation", SoCG 2001) to seed a hinted descent with a tight bound.
 #include "lodforge/eval/bvh.hpp"
 
 #include <algorithm>
@@ -23,6 +26,16 @@ constexpr std::uint32_t kMaxLeafSize = 4;
 // the query stack below can have a fixed size.
 constexpr int kMaxDepth = 60;
 constexpr int kStackSize = kMaxDepth + 2;
+// Triangles whose distances differ by less than this fraction of the largest coordinate count as equally close:
+// a box is opened only when it is nearer than the best triangle by more than that. Mesh positions are floats,
+// good to 2^-24 of their size, so the triangles of one polygon, one plane in the file, come out of rounding that
+// far off each other; without the slack a point on a surface many triangles overlap (a fanned non-convex
+// polygon, faces written many times) would test every one of them for the smallest rounding error.
+constexpr double kTieFraction = 0x1p-26;
+// A hinted query first walks from the hint to the neighbour across the edge its closest point lies on, at most
+// this many steps: in a stream of nearby queries the answer is usually the hint or a few triangles away, and a
+// tight start prunes the tree at once even where many boxes overlap the query (fans of slivers).
+constexpr int kWalkSteps = 8;
 
 // A triangle is a sliver for closest_point_on_triangle when the squared sine of its angle at the first corner is
 // below this (~0.06 degrees).
@@ -128,6 +141,39 @@ double box_dist_sq(const float* min, const float* max, const Vec3d& p) {
 
 int bin_of(double c, double lo, double scale) {
   return std::clamp(static_cast<int>((c - lo) * scale), 0, kBins - 1);
+}
+
+// For each triangle in the tree and each corner k, a triangle in the tree sharing the edge opposite corner k
+// (the same two vertex indices), or kInvalidIndex. Around an edge of more than two triangles each names the
+// next one by number, so that every one of them can be reached.
+std::vector<std::array<std::uint32_t, 3>> edge_neighbors(std::span<const std::uint32_t> indices,
+                                                         std::span<const std::uint32_t> slot_of) {
+  struct Side {
+    std::uint64_t edge;  // lower vertex index in the high half
+    std::uint32_t triangle;
+    std::uint32_t corner;
+    bool operator<(const Side& o) const { return edge != o.edge ? edge < o.edge : triangle < o.triangle; }
+  };
+  std::vector<Side> sides;
+  sides.reserve(indices.size());
+  for (std::uint32_t t = 0; t < slot_of.size(); ++t) {
+    if (slot_of[t] == kInvalidIndex) continue;
+    for (std::uint32_t k = 0; k < 3; ++k) {
+      const std::uint64_t a = indices[3 * std::size_t{t} + (k + 1) % 3], b = indices[3 * std::size_t{t} + (k + 2) % 3];
+      if (a != b) sides.push_back({std::min(a, b) << 32 | std::max(a, b), t, k});
+    }
+  }
+  std::sort(sides.begin(), sides.end());
+  std::vector<std::array<std::uint32_t, 3>> neighbor(slot_of.size(), {kInvalidIndex, kInvalidIndex, kInvalidIndex});
+  for (std::size_t begin = 0, end = 0; begin < sides.size(); begin = end) {
+    while (end < sides.size() && sides[end].edge == sides[begin].edge) ++end;
+    if (end - begin < 2) continue;
+    for (std::size_t i = begin; i < end; ++i) {
+      const Side& next = sides[i + 1 < end ? i + 1 : begin];
+      neighbor[sides[i].triangle][sides[i].corner] = next.triangle;
+    }
+  }
+  return neighbor;
 }
 
 // Recursive binned-SAH build over refs[begin, end). Nodes are stored parent first. Leaves take the ref
@@ -301,6 +347,7 @@ TriangleBvh::TriangleBvh(std::span<const Vec3d> positions, std::span<const std::
   const Built root = build_subtree(refs, nodes_, 0, static_cast<std::uint32_t>(refs.size()), 0);
   nodes_.shrink_to_fit();
   store_box(root.box, root_.min, root_.max);
+  for (int i = 0; i < 3; ++i) scale_ = std::max({scale_, std::abs(root.box.min[i]), std::abs(root.box.max[i])});
   root_.index = root.index;
   root_.count = root.count;
 
@@ -311,6 +358,7 @@ TriangleBvh::TriangleBvh(std::span<const Vec3d> positions, std::span<const std::
     slot_triangle_.push_back(refs[s].triangle);
     slot_of_[refs[s].triangle] = static_cast<std::uint32_t>(s);
   }
+  neighbor_ = edge_neighbors(indices_, slot_of_);
 }
 
 std::array<Vec3d, 3> TriangleBvh::triangle(std::uint32_t t) const {
@@ -326,7 +374,7 @@ Bounds3 TriangleBvh::bounds() const {
   return b;
 }
 
-BvhHit TriangleBvh::search(const Vec3d& p, BvhHit best, BvhWork& work) const {
+BvhHit TriangleBvh::search(const Vec3d& p, BvhHit best, const BvhHit& known, BvhWork& work) const {
   if (empty()) return best;
   struct Entry {
     std::uint32_t index, count;  // a child reference, as in BvhNode
@@ -335,11 +383,18 @@ BvhHit TriangleBvh::search(const Vec3d& p, BvhHit best, BvhWork& work) const {
   Entry stack[kStackSize];
   int top = 0;
   stack[top++] = {root_.index, root_.count, box_dist_sq(root_.min, root_.max, p)};
-  std::uint32_t best_slot = kInvalidIndex;
+  // Boxes are opened only when nearer than the best triangle by more than `slack`; see kTieFraction.
+  const double slack = kTieFraction * std::max({scale_, std::abs(p[0]), std::abs(p[1]), std::abs(p[2])});
+  auto bound_of = [slack](const BvhHit& b) {
+    if (!b.found()) return b.distance_sq;  // a caller's limit, not a triangle: exact
+    const double d = std::sqrt(b.distance_sq) - slack;
+    return d > 0 ? std::min(d * d, b.distance_sq) : 0.0;  // min: never above the exact bound through rounding
+  };
+  double bound = std::min(bound_of(best), bound_of(known));
   while (top > 0) {
     const Entry e = stack[--top];
     // Re-checked on pop: the best distance may have shrunk since this entry was pushed.
-    if (!(e.dist_sq < best.distance_sq)) continue;
+    if (!(e.dist_sq < bound)) continue;
     if (e.count > 0) {
       work.triangles += e.count;
       for (std::uint32_t s = e.index; s < e.index + e.count; ++s) {
@@ -350,7 +405,8 @@ BvhHit TriangleBvh::search(const Vec3d& p, BvhHit best, BvhWork& work) const {
           best.distance_sq = d;
           best.point = tp.point;
           best.barycentric = tp.barycentric;
-          best_slot = s;
+          best.triangle = slot_triangle_[s];
+          bound = std::min(bound, bound_of(best));
         }
       }
       continue;
@@ -363,39 +419,61 @@ BvhHit TriangleBvh::search(const Vec3d& p, BvhHit best, BvhWork& work) const {
     const bool first_nearer = c0.dist_sq <= c1.dist_sq;
     const Entry& near = first_nearer ? c0 : c1;
     const Entry& far = first_nearer ? c1 : c0;
-    if (far.dist_sq < best.distance_sq) stack[top++] = far;
-    if (near.dist_sq < best.distance_sq) stack[top++] = near;
+    if (far.dist_sq < bound) stack[top++] = far;
+    if (near.dist_sq < bound) stack[top++] = near;
     assert(top <= kStackSize);
   }
-  if (best_slot != kInvalidIndex) best.triangle = slot_triangle_[best_slot];
-  return best;
+  // The descent skipped what it could not beat by more than the slack; `known` is then as good.
+  return known.distance_sq < best.distance_sq ? known : best;
 }
 
 BvhHit TriangleBvh::closest_point(const Vec3d& p) const {
   BvhWork work;
-  return search(p, BvhHit{}, work);
+  return search(p, BvhHit{}, BvhHit{}, work);
 }
 
 BvhHit TriangleBvh::closest_point(const Vec3d& p, std::uint32_t hint) const {
   BvhWork work;
-  return closest_point(p, hint, work);
+  return hinted(p, hint, work);
 }
 
 BvhHit TriangleBvh::closest_point(const Vec3d& p, std::uint32_t hint, BvhWork& work) const {
-  if (hint >= slot_of_.size() || slot_of_[hint] == kInvalidIndex) return search(p, BvhHit{}, work);
-  const std::array<Vec3d, 3>& t = slot_corners_[slot_of_[hint]];
-  const TrianglePoint tp = closest_point_on_triangle(p, t[0], t[1], t[2]);
+  return hinted(p, hint, work);
+}
+
+BvhHit TriangleBvh::measure(const Vec3d& p, std::uint32_t t, BvhWork& work) const {
+  const std::array<Vec3d, 3>& c = slot_corners_[slot_of_[t]];
+  const TrianglePoint tp = closest_point_on_triangle(p, c[0], c[1], c[2]);
   ++work.triangles;
-  const double d = dist_sq(p, tp.point);
-  if (!(d < INFINITY)) return search(p, BvhHit{}, work);  // NaN or overflow: no useful bound
-  return search(p, BvhHit{hint, tp.point, tp.barycentric, d}, work);
+  return {t, tp.point, tp.barycentric, dist_sq(p, tp.point)};
+}
+
+BvhHit TriangleBvh::hinted(const Vec3d& p, std::uint32_t hint, BvhWork& work) const {
+  if (hint >= slot_of_.size() || slot_of_[hint] == kInvalidIndex) return search(p, BvhHit{}, BvhHit{}, work);
+  const BvhHit start = measure(p, hint, work);
+  if (!(start.distance_sq < INFINITY)) return search(p, BvhHit{}, BvhHit{}, work);  // NaN or overflow
+  // Walk across the edge (or the two edges at the corner) the closest point lies on while that gets closer.
+  BvhHit walked = start;
+  for (int step = 0; step < kWalkSteps; ++step) {
+    BvhHit next = walked;
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t across = neighbor_[walked.triangle][k];
+      if (walked.barycentric[k] != 0 || across == kInvalidIndex) continue;  // not on the edge opposite corner k
+      if (const BvhHit h = measure(p, across, work); h.distance_sq < next.distance_sq) next = h;
+    }
+    if (next.triangle == walked.triangle) break;
+    walked = next;
+  }
+  // The walk only tightens the pruning: the answer is still the one the descent from the hint finds, so that
+  // of several equally close triangles (a shared corner) the same one is returned as without the walk.
+  return search(p, start, walked, work);
 }
 
 BvhHit TriangleBvh::closest_point_within(const Vec3d& p, double max_distance) const {
   BvhHit start;
   start.distance_sq = max_distance > 0 ? max_distance * max_distance : 0.0;
   BvhWork work;
-  return search(p, start, work);
+  return search(p, start, BvhHit{}, work);
 }
 
 TriangleBvh make_triangle_bvh(const Mesh& mesh) {

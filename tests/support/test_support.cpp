@@ -155,6 +155,88 @@ Mesh make_grid(int nx, int ny, bool quads) {
   return with_default_material(std::move(m));
 }
 
+Mesh make_zigzag_fan(int corners, float amplitude) {
+  Mesh m;
+  std::vector<std::uint32_t> face;
+  for (int i = 0; i < corners; ++i) {
+    const float x = static_cast<float>(i) / static_cast<float>(corners - 1);
+    face.push_back(m.add_vertex_with_wedge({{x, i % 2 ? amplitude : 0.0f, 0.0f}}));
+  }
+  m.add_face(face.data(), face.size());
+  return with_default_material(std::move(m));
+}
+
+Mesh make_fanned_disk(int corners) {
+  Mesh m;
+  std::vector<std::uint32_t> face;
+  for (int i = 0; i < corners; ++i) {
+    const double a = 2.0 * std::numbers::pi * i / corners;
+    face.push_back(m.add_vertex_with_wedge({{float(std::cos(a)), float(std::sin(a)), 0.0f}}));
+  }
+  m.add_face(face.data(), face.size());
+  return with_default_material(std::move(m));
+}
+
+Mesh make_cone(int segments) {
+  Mesh m;
+  const std::uint32_t apex = m.add_vertex_with_wedge({{0.0f, 0.0f, 1.0f}});
+  for (int i = 0; i < segments; ++i) {
+    const double a = 2.0 * std::numbers::pi * i / segments;
+    m.add_vertex_with_wedge({{float(std::cos(a)), float(std::sin(a)), 0.0f}});
+  }
+  for (int i = 0; i < segments; ++i) {
+    m.add_face({apex, 1 + static_cast<std::uint32_t>(i), 1 + static_cast<std::uint32_t>((i + 1) % segments)});
+  }
+  return with_default_material(std::move(m));
+}
+
+Mesh make_needle_strip(int triangles) {
+  // Across the strip along (1, -1, 0), along the needles (1, 1, 1): both diagonal, so no box is flat.
+  const double s2 = 1.0 / std::sqrt(2.0), s3 = 1.0 / std::sqrt(3.0);
+  const Vec3d across{{s2, -s2, 0}}, along{{s3, s3, s3}};
+  const int columns = std::max(1, triangles / 2);
+  Mesh m;
+  for (int i = 0; i <= columns; ++i) {
+    const Vec3d base = across * (static_cast<double>(i) / columns);
+    m.add_vertex_with_wedge(to_float(base));
+    m.add_vertex_with_wedge(to_float(base + along));
+  }
+  for (std::uint32_t i = 0; i < static_cast<std::uint32_t>(columns); ++i) {
+    m.add_face({2 * i, 2 * i + 2, 2 * i + 1});
+    m.add_face({2 * i + 1, 2 * i + 2, 2 * i + 3});
+  }
+  return with_default_material(std::move(m));
+}
+
+Mesh make_stacked_grid(int triangles, int copies) {
+  const int cells = std::max(1, triangles / (2 * copies));
+  const int n = std::max(1, static_cast<int>(std::sqrt(static_cast<double>(cells))));
+  Mesh m = make_grid(n, std::max(1, cells / n), false);
+  const std::size_t faces = m.face_count();
+  for (int c = 1; c < copies; ++c) {
+    for (std::size_t f = 0; f < faces; ++f) {
+      const std::uint32_t b = m.face_offsets[f];
+      m.add_face({m.corner_wedge[b], m.corner_wedge[b + 1], m.corner_wedge[b + 2]});
+    }
+  }
+  return m;
+}
+
+Mesh translated(Mesh mesh, const Vec3f& offset) {
+  for (Vec3f& p : mesh.positions) p = p + offset;
+  return mesh;
+}
+
+Mesh tilted(Mesh mesh) {
+  const double cx = std::cos(0.5), sx = std::sin(0.5), cy = std::cos(0.7), sy = std::sin(0.7);
+  for (Vec3f& p : mesh.positions) {
+    const Vec3d q = to_double(p);
+    const double y = q[1] * cx - q[2] * sx, z = q[1] * sx + q[2] * cx;
+    p = to_float(Vec3d{{q[0] * cy + z * sy, y, -q[0] * sy + z * cy}});
+  }
+  return mesh;
+}
+
 Mesh make_uv_sphere(int rings, int segments, float radius) {
   Mesh m;
   const double pi = std::numbers::pi;

@@ -54,6 +54,24 @@ Mesh make_uv_sphere(int rings, int segments, float radius = 1.0f);  // closed tr
 // Open unit-radius triangle cylinder along z in [0, 4] bound to two joints: joint 0 below z = band_start, joint 1
 // above band_start + band_width, weights linear in between (the blend band).
 Mesh make_two_bone_cylinder(int rings, int segments, float band_start, float band_width);
+// Hostile input for the evaluator's BVH, each about `triangles` triangles in the unit box:
+//   zigzag fan      one polygon whose corners zig-zag along x between y = 0 and y = amplitude, fanned from its
+//                   first corner into long overlapping slivers (amplitude 0: all corners collinear)
+//   fanned disk     one convex polygon on the unit circle, fanned from its first corner: slivers radiating
+//                   from one point, each with a loose diagonal box
+//   cone            the side of a unit cone, one triangle per segment from the apex: slivers radiating in 3D
+//   needle strip    a strip of 1 x 1/(triangles/2) slivers side by side, tilted so that every box is a cube
+//   stacked grid    a small grid written `copies` times over itself (coincident triangles)
+Mesh make_zigzag_fan(int corners, float amplitude);
+Mesh make_fanned_disk(int corners);
+Mesh make_cone(int segments);
+Mesh make_needle_strip(int triangles);
+Mesh make_stacked_grid(int triangles, int copies);
+// `mesh` moved by `offset`.
+Mesh translated(Mesh mesh, const Vec3f& offset);
+// `mesh` turned about x by 0.5 and about y by 0.7 radians (positions rounded to float again): no plane of it
+// stays axis-aligned, and a planar polygon's triangles are then coplanar only up to float rounding.
+Mesh tilted(Mesh mesh);
 // `mesh` with every `every`-th face written again at the end, starting from its second corner (what some
 // exporters do: same face, same winding): repeated_faces() lists exactly the copies.
 Mesh with_repeated_faces(const Mesh& mesh, std::size_t every);

@@ -6,6 +6,14 @@
 // Used by the Metro-style evaluator (eval.hpp) and meant for every "closest point on the other surface" query
 // (attribute and UV deviation, conservative error checks). Queries are const and allocation-free, so any
 // number of threads may query one BVH at once.
+//
+// Hostile input stays cheap where the geometry allows: distances within 2^-26 of the largest coordinate of the
+// best one (a quarter of the precision of float positions) count as ties, so a point on a surface that many
+// triangles overlap (a fanned non-convex polygon, faces written many times over) stops at the first; and a
+// hinted query walks from the hint across the mesh's edges first, so it starts from the answer even where many
+// boxes overlap.
+// What stays slow is a query off the surface next to thousands of long slivers in a box-unfriendly layout
+// (a fine cone fanned from its apex): their boxes are close, so they are tested.
 #pragma once
 
 #include <array>
@@ -74,12 +82,14 @@ class TriangleBvh {
   bool empty() const { return root_.count == 0 && nodes_.empty(); }  // no triangle with finite corners
   Bounds3 bounds() const;
 
-  // The closest point on any triangle, exact up to rounding. Among equally close triangles, which one is
-  // returned is unspecified (but the same for the same query).
+  // The closest point on any triangle: the exact closest point (up to rounding) of a triangle no other one is
+  // closer than by more than 2^-26 (1.5e-8) of the largest coordinate of the tree or p. Among equally close
+  // triangles, which one is returned is unspecified (but the same for the same query).
   BvhHit closest_point(const Vec3d& p) const;
   // The same distance, with triangle `hint` (for example the previous answer of a spatially coherent stream of
-  // queries) measured first so that most of the tree is pruned at once. May name a different triangle only
-  // when several are equally close. An out-of-range or left-out hint is ignored.
+  // queries) measured first, and its neighbours across the edges the closest point lies on while they are
+  // closer, so that most of the tree is pruned at once. May name a different triangle only when several are
+  // equally close. An out-of-range or left-out hint is ignored.
   BvhHit closest_point(const Vec3d& p, std::uint32_t hint) const;
   // The same, adding the query's work to `work` (what tests and benchmarks count instead of time).
   BvhHit closest_point(const Vec3d& p, std::uint32_t hint, BvhWork& work) const;
@@ -100,15 +110,21 @@ class TriangleBvh {
   std::uint32_t slot_triangle(std::uint32_t slot) const { return slot_triangle_[slot]; }
 
  private:
-  // Ordered depth-first descent (nearer child first, boxes no closer than the best so far skipped), keeping
-  // `best` unless something strictly closer is found.
-  BvhHit search(const Vec3d& p, BvhHit best, BvhWork& work) const;
+  // Ordered depth-first descent (nearer child first, boxes not nearer than the best so far by more than a
+  // rounding slack skipped), keeping `best` unless something strictly closer is found. `known` (a triangle
+  // measured already, or none) only tightens the pruning, and is returned when the descent found nothing as
+  // close.
+  BvhHit search(const Vec3d& p, BvhHit best, const BvhHit& known, BvhWork& work) const;
+  BvhHit hinted(const Vec3d& p, std::uint32_t hint, BvhWork& work) const;
+  BvhHit measure(const Vec3d& p, std::uint32_t triangle, BvhWork& work) const;  // one triangle in the tree
 
   Root root_;
+  double scale_ = 0;  // largest absolute coordinate of a triangle in the tree
   std::vector<BvhNode> nodes_;
   std::vector<std::array<Vec3d, 3>> slot_corners_;  // triangles in leaf order, for locality
   std::vector<std::uint32_t> slot_triangle_;        // slot -> triangle number
   std::vector<std::uint32_t> slot_of_;              // triangle number -> slot, kInvalidIndex if left out
+  std::vector<std::array<std::uint32_t, 3>> neighbor_;  // triangle -> one across the edge opposite corner k
   std::vector<Vec3d> positions_;                    // as given, for triangle()
   std::vector<std::uint32_t> indices_;
 };

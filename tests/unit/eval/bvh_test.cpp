@@ -171,6 +171,39 @@ TEST(TriangleBvh, ClosestPointEqualsBruteForceOnRandomSoup) {
   }
 }
 
+// Queries along a stream with the previous answer as the hint, as eval makes them: the hinted search walks the
+// mesh from the hint and must still give the brute-force distance. Here on a closed mesh and on a fan of
+// overlapping slivers (many triangles equally close: the answer is one of them, at the same distance).
+TEST(TriangleBvh, HintedQueriesOnConnectedMeshesEqualBruteForce) {
+  for (const Mesh& mesh : {testing::make_uv_sphere(16, 24), testing::make_zigzag_fan(300, 0.05f)}) {
+    const Mesh tris = triangulated(mesh);
+    Soup soup;
+    for (const Vec3f& p : mesh.positions) soup.positions.push_back(to_double(p));
+    soup.indices = triangle_vertex_indices(mesh);
+    const TriangleBvh bvh(soup.positions, soup.indices);
+    std::uint32_t hint = kInvalidIndex;
+    std::uint64_t key = 7;
+    for (std::uint32_t t = 0; t < bvh.triangle_count(); ++t) {
+      const std::array<Vec3d, 3> c = bvh.triangle(t);
+      for (const double lift : {0.0, 0.02, -0.3}) {
+        // On triangle t, moved along z (off the surface, to the side of the fan, inside the sphere).
+        const double u = uniform(key, 0, 0.5), v = uniform(key + 1, 0, 0.5);
+        key += 2;
+        const Vec3d p = c[0] + (c[1] - c[0]) * u + (c[2] - c[0]) * v + v3(0.3 * lift, lift, lift);
+        const BvhHit want = brute_force(soup, p);
+        BvhWork work;
+        const BvhHit got = bvh.closest_point(p, hint, work);
+        ASSERT_TRUE(got.found());
+        EXPECT_NEAR(got.distance(), want.distance(), 1e-13) << "triangle " << t << " lift " << lift;
+        const std::array<Vec3d, 3> g = bvh.triangle(got.triangle);
+        expect_vec_near(got.point, closest_point_on_triangle(p, g[0], g[1], g[2]).point);
+        EXPECT_GE(work.triangles, 1u);
+        hint = got.triangle;
+      }
+    }
+  }
+}
+
 TEST(TriangleBvh, WorkCountsOpenedNodesAndTestedTriangles) {
   const std::vector<Vec3d> positions = {v3(0, 0, 0), v3(1, 0, 0), v3(0, 1, 0)};
   const std::vector<std::uint32_t> indices = {0, 1, 2};

@@ -158,6 +158,36 @@ TEST(Evaluate, WorkIsTheSameForAnyThreadCount) {
   EXPECT_EQ(r1.work.triangles, r2.work.triangles);
 }
 
+// Closest-point work per query, over both directions' area and vertex samples.
+double work_per_query(const EvalResult& r) {
+  const double queries =
+      static_cast<double>(r.a_to_b.samples + r.a_to_b.vertex_samples + r.b_to_a.samples + r.b_to_a.vertex_samples);
+  return static_cast<double>(r.work.nodes + r.work.triangles) / queries;
+}
+
+// Hostile input found by an outside test: one polygon of 20000 zig-zag corners, fanned into overlapping slivers
+// that all share a corner. A point on it lies on hundreds of triangles, each at a distance of rounding noise, and
+// the search tested them all (about 1000 nodes and triangles per query here, 200x the clean grid). Work, not
+// time, so the bound holds on any machine; lodforge_bench_eval has the times.
+TEST(Evaluate, SliverFanCostsAboutWhatACleanGridDoes) {
+  const Mesh fan = testing::make_zigzag_fan(20000, 0.01f);
+  const Mesh grid = make_grid(100, 100, false);
+  const EvalOptions options{.samples = 20000};
+  const double clean = work_per_query(evaluate(grid, grid, options));
+  EXPECT_LT(clean, 10.0);
+  EXPECT_LT(work_per_query(evaluate(fan, fan, options)), 4 * clean);
+  // Turned out of the axis planes its triangles are coplanar only up to float rounding: still ties.
+  const Mesh turned = testing::tilted(fan);
+  EXPECT_LT(work_per_query(evaluate(turned, turned, options)), 12 * clean);
+  // Also a convex 20000-gon fanned from one corner, faces written 50 times over, and collinear corners.
+  EXPECT_LT(work_per_query(evaluate(testing::make_fanned_disk(20000), testing::make_fanned_disk(20000), options)),
+            10 * clean);
+  const Mesh stacked = testing::make_stacked_grid(20000, 50);
+  EXPECT_LT(work_per_query(evaluate(stacked, stacked, options)), 4 * clean);
+  const Mesh line = testing::make_zigzag_fan(20000, 0.0f);
+  EXPECT_LT(work_per_query(evaluate(line, line, options)), 4 * clean);
+}
+
 TEST(Evaluate, PolygonsAreFanTriangulated) {
   // make_grid's triangle split is the fan of its quads, so both must sample exactly the same points.
   const Mesh target = transformed(make_grid(3, 3, false), 1.0, {{0.1, 0.2, 0.3}});
