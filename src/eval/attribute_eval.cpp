@@ -7,6 +7,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -381,7 +382,13 @@ AttributeEvalResult evaluate_attributes(const Mesh& original_in, const Mesh& sim
     const std::size_t ns = streams.size();
     std::vector<double> sq(n * ns, 0.0), angle(n, -1.0);
     const double total = a.cumulative_area.back();
+    std::atomic<bool> stopped = false;
     parallel_chunks(options.threads, n, [&](std::size_t begin, std::size_t end) {
+      if (stopped.load(std::memory_order_relaxed)) return;
+      if (options.stop.requested()) {
+        stopped = true;
+        return;
+      }
       std::uint32_t hint = 0;
       for (std::size_t i = begin; i < end; ++i) {
         const std::uint64_t h = mix64(options.seed ^ mix64(i + 1));
@@ -410,6 +417,7 @@ AttributeEvalResult evaluate_attributes(const Mesh& original_in, const Mesh& sim
         }
       }
     });
+    result.stopped = stopped;
     for (std::size_t k = 0; k < ns; ++k) {
       double s = 0;
       for (std::size_t i = 0; i < n; ++i) s += sq[i * ns + k];
@@ -530,12 +538,14 @@ AttributeEvalResult evaluate_attributes(const Mesh& original_in, const Mesh& sim
   }
 
   // Skinned: Metro distance in the bind pose and a few synthetic poses.
-  if (original.skin.size() == original.vertex_count() && simplified.skin.size() == simplified.vertex_count() &&
-      original.vertex_count() > 0) {
-    const EvalOptions eo{.samples = options.pose_samples, .seed = options.seed, .threads = options.threads};
+  if (!result.stopped && original.skin.size() == original.vertex_count() &&
+      simplified.skin.size() == simplified.vertex_count() && original.vertex_count() > 0) {
+    const EvalOptions eo{
+        .samples = options.pose_samples, .seed = options.seed, .threads = options.threads, .stop = options.stop};
     const double diagonal = compute_bounds(original).diagonal();
     auto add = [&](std::string name, const Mesh& x, const Mesh& y) {
       const EvalResult e = evaluate(x, y, eo);
+      result.stopped = result.stopped || e.stopped;
       const double d = diagonal > 0.0 ? diagonal : 1.0;
       result.poses.push_back({std::move(name), e.hausdorff / d, e.mean / d, e.rms / d});
       result.pose_max_hausdorff_rel = std::max(result.pose_max_hausdorff_rel, e.hausdorff / d);

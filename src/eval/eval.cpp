@@ -18,6 +18,7 @@
 #include "lodforge/eval/eval.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cassert>
 #include <cmath>
 #include <numbers>
@@ -158,7 +159,7 @@ struct Direction {
 };
 
 Direction measure(const Surface& from, const Surface& to, std::size_t area_samples, std::uint64_t stream,
-                  bool include_vertices) {
+                  bool include_vertices, const StopRequest& stop, std::atomic<bool>& stopped) {
   Direction out;
   const std::size_t n = from.last_with_area == kInvalidIndex ? 0 : area_samples;
   const std::size_t nv = include_vertices ? from.vertices.size() : 0;
@@ -183,6 +184,11 @@ Direction measure(const Surface& from, const Surface& to, std::size_t area_sampl
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, vertex_blocks + area_blocks, 1),
                     [&](const tbb::blocked_range<std::size_t>& range) {
     for (std::size_t block = range.begin(); block != range.end(); ++block) {
+      if (stopped.load(std::memory_order_relaxed)) return;
+      if (stop.requested()) {
+        stopped = true;
+        return;
+      }
       std::uint32_t hint = kInvalidIndex;  // restarts per block: results must not depend on task grouping
       if (block < vertex_blocks) {
         BlockSums& sums = vertex_sums[block];
@@ -273,10 +279,12 @@ EvalResult evaluate_in_arena(const Mesh& original, const Mesh& simplified, const
                                   : default_eval_samples(std::max(a.triangle_count(), b.triangle_count()));
   // Independent random streams per direction.
   const std::uint64_t base = mix64(options.seed);
-  const Direction ab = measure(a, b, samples, mix64(base ^ 0xA), options.include_vertices);
-  const Direction ba = measure(b, a, samples, mix64(base ^ 0xB), options.include_vertices);
+  std::atomic<bool> stopped = false;
+  const Direction ab = measure(a, b, samples, mix64(base ^ 0xA), options.include_vertices, options.stop, stopped);
+  const Direction ba = measure(b, a, samples, mix64(base ^ 0xB), options.include_vertices, options.stop, stopped);
 
   EvalResult r;
+  r.stopped = stopped;
   r.a_to_b = ab.stats;
   r.b_to_a = ba.stats;
   r.hausdorff = std::max(ab.stats.max, ba.stats.max);

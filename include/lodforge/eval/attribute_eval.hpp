@@ -35,6 +35,7 @@
 #include <vector>
 
 #include "lodforge/core/mesh.hpp"
+#include "lodforge/core/stop.hpp"
 
 namespace lodforge {
 
@@ -45,6 +46,8 @@ struct AttributeEvalOptions {
   int poses = 3;                 // synthetic joint rotations (skinned meshes), besides the bind pose
   double pose_angle_deg = 45.0;
   std::size_t pose_samples = 50000;  // area samples per direction of each pose's Metro evaluation
+  // As EvalOptions::stop: polled between chunks of samples; once requested the rest is skipped, `stopped` set.
+  StopRequest stop{};
 };
 
 struct AttributeError {
@@ -77,6 +80,7 @@ struct AttributeEvalResult {
   std::vector<PoseError> poses;  // empty unless both meshes are skinned
   double pose_max_hausdorff_rel = 0;
   std::size_t samples = 0;
+  bool stopped = false;  // options.stop was requested: the figures are incomplete and mean nothing
   // Counts of the LOD's triangles over all UV sets (a triangle flipped in two sets counts twice).
   std::size_t uv_flipped() const;
   std::size_t uv_spanning() const;

@@ -11,6 +11,7 @@
 #include <string>
 
 #include "lodforge/core/mesh.hpp"
+#include "lodforge/core/stop.hpp"
 #include "lodforge/eval/bvh.hpp"
 
 namespace lodforge {
@@ -20,6 +21,9 @@ struct EvalOptions {
   std::uint64_t seed = 12345;
   bool include_vertices = true;   // also sample every vertex (maxima usually sit there)
   unsigned threads = 0;           // 0 = all cores; the result is bit-identical for any value
+  // Polled between blocks of samples: once requested, the remaining samples are skipped and the result comes
+  // back with `stopped` set.
+  StopRequest stop{};
 };
 
 // Distances from the samples of one mesh to the other surface, in model units.
@@ -46,6 +50,8 @@ struct EvalResult {
   double rms_rel() const { return diagonal > 0 ? rms / diagonal : 0; }
   // Face-normal angle (see OneSided), pooled over both directions' area samples.
   double normal_deviation_mean_deg = 0, normal_deviation_p95_deg = 0;
+  // options.stop was requested: the figures are incomplete and mean nothing.
+  bool stopped = false;
   // Closest-point work of both directions (a machine-independent cost; the same for any thread count).
   BvhWork work;
   // Empty unless a mesh has no triangles: then distances to it are +infinity (never NaN), and this says why.

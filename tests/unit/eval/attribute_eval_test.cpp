@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <vector>
 
@@ -167,6 +168,15 @@ TEST(AttributeEval, SkinnedPosesExposeWrongWeights) {
   const AttributeEvalResult r = evaluate_attributes(tube, wrong, kFast);
   EXPECT_LT(r.poses[0].hausdorff_rel, 1e-6);  // identical at bind pose
   EXPECT_GT(r.pose_max_hausdorff_rel, 0.05);  // but not when a joint turns
+}
+
+TEST(AttributeEval, StopRequestSkipsTheRestAndSaysSo) {
+  const Mesh m = attributed_grid(10);
+  EXPECT_FALSE(evaluate_attributes(m, m, kFast).stopped);
+  std::atomic<bool> flag{true};
+  AttributeEvalOptions options = kFast;
+  options.stop.flag = &flag;
+  EXPECT_TRUE(evaluate_attributes(m, m, options).stopped);
 }
 
 TEST(AttributeEval, EmptyInputGivesAnEmptyResult) {

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 
@@ -186,6 +188,23 @@ TEST(Evaluate, SliverFanCostsAboutWhatACleanGridDoes) {
   EXPECT_LT(work_per_query(evaluate(stacked, stacked, options)), 4 * clean);
   const Mesh line = testing::make_zigzag_fan(20000, 0.0f);
   EXPECT_LT(work_per_query(evaluate(line, line, options)), 4 * clean);
+}
+
+TEST(Evaluate, StopRequestSkipsTheRemainingSamplesAndSaysSo) {
+  const Mesh a = make_uv_sphere(24, 32);
+  const Mesh b = transformed(a, 0.9, {{0, 0, 0}});
+  const EvalResult full = evaluate(a, b, {.samples = 40000});
+  EXPECT_FALSE(full.stopped);
+  std::atomic<bool> flag{false};
+  const EvalResult unset = evaluate(a, b, {.samples = 40000, .stop = {.flag = &flag}});
+  EXPECT_FALSE(unset.stopped);
+  EXPECT_EQ(unset.mean, full.mean);
+  flag = true;
+  const EvalResult stopped = evaluate(a, b, {.samples = 40000, .stop = {.flag = &flag}});
+  EXPECT_TRUE(stopped.stopped);
+  EXPECT_EQ(stopped.work.triangles, 0u) << "no sample was measured";
+  const auto past = StopRequest::Clock::now() - std::chrono::seconds(1);
+  EXPECT_TRUE(evaluate(a, b, {.samples = 40000, .stop = {.deadline = past}}).stopped);
 }
 
 TEST(Evaluate, PolygonsAreFanTriangulated) {
