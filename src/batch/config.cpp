@@ -510,6 +510,15 @@ const std::vector<Field<OutputOptions>>& output_fields() {
   return fields;
 }
 
+// Run limits: `defaults` only, and no part of the cache key (they bound how a run goes, not what it makes).
+const std::vector<Field<RunLimits>>& limit_fields() {
+  using B = FieldsOf<RunLimits>;
+  static const std::vector<Field<RunLimits>> fields = {
+      B::number("asset_timeout_s", &RunLimits::asset_timeout_s, at_least(0)),
+  };
+  return fields;
+}
+
 constexpr std::string_view kRootKeys[] = {"$schema", "version", "description", "defaults", "default_class", "classes"};
 constexpr std::string_view kClassKeys[] = {"name", "description", "match", "options", "lods"};
 constexpr std::string_view kTargetKeys[] = {"ratio", "triangles", "max_error", "screen_size"};
@@ -525,6 +534,7 @@ std::vector<std::string_view> option_keys() {
 std::vector<std::string_view> defaults_keys() {
   std::vector<std::string_view> keys = option_keys();
   append_keys(keys, output_fields());
+  append_keys(keys, limit_fields());
   return keys;
 }
 
@@ -848,6 +858,7 @@ BatchConfig read_document(const Json& doc, Problems& problems) {
       check_keys(*defaults, "defaults", defaults_keys(), problems);
       apply_fields(*defaults, "defaults", option_fields(), config.defaults, problems);
       apply_fields(*defaults, "defaults", output_fields(), config.output, problems);
+      apply_fields(*defaults, "defaults", limit_fields(), config.limits, problems);
     }
   }
   if (const Json* classes = find(doc, "classes")) {
@@ -1068,6 +1079,7 @@ BatchConfig load_config(const std::filesystem::path& path) {
 nlohmann::json effective_config_json(const BatchConfig& config) {
   Json defaults = write_fields(option_fields(), config.defaults);
   defaults.update(write_fields(output_fields(), config.output));
+  defaults.update(write_fields(limit_fields(), config.limits));
   Json out = {{"version", config.version}, {"defaults", std::move(defaults)}};
   if (!config.description.empty()) out["description"] = config.description;
   if (!config.default_class.empty()) out["default_class"] = config.default_class;

@@ -28,6 +28,7 @@
 #include <bit>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <deque>
 #include <fstream>
@@ -35,6 +36,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <set>
 
 #include "lodforge/batch/cache.hpp"
@@ -99,6 +101,9 @@ void release_free_memory() {
   ::malloc_trim(0);
 #endif
 }
+
+// Thrown where an asset is found past its deadline; the stage wrapper turns it into the asset's failure.
+struct TimedOut {};
 
 // ---- per-mesh LOD chains, shared by duplicates ----------------------------------------------------------------
 
@@ -213,10 +218,12 @@ unsigned threads_for(std::size_t triangles, unsigned jobs) {
 // One mesh's chain. Ratios are of the mesh's own triangles; a triangle-count target is the asset's, shared
 // among its meshes by their triangle counts; error targets are relative to the asset's diagonal.
 MeshChain build_chain(const Mesh& source, const AssetClass& cls, std::size_t asset_triangles, double asset_diagonal,
-                      unsigned jobs) {
+                      unsigned jobs, const StopRequest& stop) {
   MeshChain chain;
   const std::size_t source_triangles = source.triangle_count();
   for (std::size_t k = 0; k < cls.lods.size(); ++k) {
+    // The engines cannot be stopped inside simplify() yet: the deadline is checked between LODs.
+    if (stop.requested()) throw TimedOut{};
     LodSpec spec = cls.lods[k];
     const bool chained = spec.from == LodFrom::previous && k > 0;
     const Mesh& from = chained ? chain[k - 1].mesh : source;
@@ -277,6 +284,15 @@ struct Job {
   std::vector<std::vector<Mesh>> levels;                 // [level][mesh], post-processed
   std::vector<double> coverage;                          // MSFT_screencoverage, levels + 1 values
   std::vector<bool> shows_previous;                      // per level: a near-copy of the one before, not stored
+
+  // RunLimits::asset_timeout_s after the first stage started; none without a limit.
+  std::optional<Clock::time_point> deadline;
+  bool past_deadline() const { return deadline && Clock::now() > *deadline; }
+  void check_deadline() const {
+    if (past_deadline()) throw TimedOut{};
+  }
+  // The same test for the long loops inside a stage (eval's sampling).
+  StopRequest stop_request() const { return deadline ? StopRequest{.deadline = *deadline} : StopRequest{}; }
 };
 using JobPtr = std::shared_ptr<Job>;
 
@@ -424,7 +440,7 @@ Json budget_json(const LodTarget& t, std::size_t source_triangles, std::size_t t
 // stretch / source stretch, worst set), and for skinned meshes "pose_hausdorff_rel" (worst synthetic pose).
 // Sample counts are capped (kAttributeSamples*) so that small assets stay cheap.
 Json attribute_metrics(const EvalResult& e, const std::vector<Mesh>& sources, const std::vector<Mesh>& lods,
-                       unsigned jobs) {
+                       unsigned jobs, const StopRequest& stop) {
   Json out = {{"normal_deviation_mean_deg", finite(e.normal_deviation_mean_deg)},
               {"normal_deviation_p95_deg", finite(e.normal_deviation_p95_deg)}};
   std::map<std::string, double> rms;
@@ -443,7 +459,9 @@ Json attribute_metrics(const EvalResult& e, const std::vector<Mesh>& sources, co
     options.samples = std::clamp(kAttributeSamplesPerTriangle * triangles, kAttributeSamplesMin, kAttributeSamplesMax);
     options.pose_samples = kAttributePoseSamples;
     options.threads = threads_for(triangles, jobs);
+    options.stop = stop;
     const AttributeEvalResult r = evaluate_attributes(source, lod, options);
+    if (r.stopped) throw TimedOut{};
     for (const AttributeError& a : r.attributes) rms[a.name] = std::max(rms[a.name], a.rms);
     if (!source.normals.empty() && !lod.normals.empty()) {
       has_normals = true;
@@ -564,8 +582,9 @@ class Pipeline {
       Hasher key;
       key.bytes(mesh_content_hash(mesh)).bytes(job.cls->name).u64(job.triangles);
       key.u64(std::bit_cast<std::uint64_t>(job.diagonal));
-      job.chains.push_back(
-          chains_.get(key.hex(), [&] { return build_chain(mesh, *job.cls, job.triangles, job.diagonal, jobs_); }));
+      job.chains.push_back(chains_.get(key.hex(), [&] {
+        return build_chain(mesh, *job.cls, job.triangles, job.diagonal, jobs_, job.stop_request());
+      }));
     }
   }
 
@@ -574,6 +593,7 @@ class Pipeline {
     const std::size_t levels = job.cls->lods.size();
     job.levels.assign(levels, {});
     for (std::size_t k = 0; k < levels; ++k) {
+      job.check_deadline();
       for (const auto& chain : job.chains) {
         const Mesh& lod = (*chain)[k].mesh;
         job.levels[k].push_back(optimize ? optimize_for_gpu(lod) : lod);
@@ -613,6 +633,7 @@ class Pipeline {
     double coverage_above = 1.0;
     job.coverage.clear();
     for (std::size_t k = 0; k < job.levels.size(); ++k) {
+      job.check_deadline();
       const LodSpec& spec = job.cls->lods[k];
       std::vector<const Mesh*> lod_ptrs;
       std::size_t triangles = 0, vertices = 0;
@@ -644,7 +665,9 @@ class Pipeline {
       EvalOptions eval;
       eval.samples = std::clamp(kEvalSamplesPerTriangle * larger, kEvalSamplesMin, kEvalSamplesMax);
       eval.threads = threads_for(larger, jobs_);
+      eval.stop = job.stop_request();
       const EvalResult e = evaluate(source, lod, eval);
+      if (e.stopped) throw TimedOut{};
       const quad::QuadStats quads = quad::quad_stats(lod);
 
       // Where this LOD switches in (share of screen height): the config's own screen size, else where its
@@ -674,7 +697,7 @@ class Pipeline {
                       {"rms_rel", finite(e.rms_rel())},
                       {"hausdorff_rel", finite(e.hausdorff_rel())},
                       {"normal_deviation_mean_deg", finite(e.normal_deviation_mean_deg)},
-                      {"attributes", attribute_metrics(e, job.sources, job.levels[k], jobs_)},
+                      {"attributes", attribute_metrics(e, job.sources, job.levels[k], jobs_, job.stop_request())},
                       {"quad_fraction", finite(quads.quad_fraction)},
                       {"irregular_vertices", quads.irregular_vertices},
                       {"stop_reason", stop},
@@ -696,6 +719,7 @@ class Pipeline {
     const fs::path staging = cache_.staging_for(job.path);
     try {
       write_outputs(job, staging);
+      job.check_deadline();  // last moment to give up: once published, the asset is done
       job.record["outputs"] = cache_.publish(staging, fs::path(job.path).parent_path());
     } catch (...) {
       std::error_code ec;
@@ -762,14 +786,35 @@ void fail(Job& job, const std::string& error) {
   job.finished = true;
 }
 
-// Wraps a stage: skips finished jobs, times the stage, and turns any exception into the asset's failure.
+// A timeout beyond a year is no limit (and would overflow the clock's representation).
+constexpr double kMaxTimeoutSeconds = 365.0 * 24 * 3600;
+
+std::string timeout_message(const char* stage, double timeout_s) {
+  char seconds[32];
+  std::snprintf(seconds, sizeof seconds, "%g", timeout_s);
+  return std::string("timed out in the ") + stage + " stage (asset timeout " + seconds + " s)";
+}
+
+// Wraps a stage: skips finished jobs, times the stage, and turns any exception into the asset's failure. With an
+// asset timeout, the first stage sets the deadline; later stages check it on entry, and every stage on exit
+// unless it finished the asset (a cache hit, or the write stage, which gives up only before it publishes: a
+// published asset is complete). The stages also check it inside their long loops.
 template <class F>
-auto stage(F body, double StageSeconds::*field) {
-  return [body, field](JobPtr job) -> JobPtr {
+auto stage(F body, double StageSeconds::*field, const char* name, double timeout_s, const RunOptions& options) {
+  return [body, field, name, timeout_s, &options](JobPtr job) -> JobPtr {
     if (job->finished) return job;
     const auto t0 = Clock::now();
+    const bool first = timeout_s > 0 && timeout_s < kMaxTimeoutSeconds && !job->deadline;
+    if (first) {
+      job->deadline = t0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(timeout_s));
+    }
     try {
+      if (options.on_stage_start) options.on_stage_start(job->path, name);
+      if (!first) job->check_deadline();
       body(*job);
+      if (!job->finished && field != &StageSeconds::write) job->check_deadline();
+    } catch (const TimedOut&) {
+      fail(*job, timeout_message(name, timeout_s));
     } catch (const std::exception& e) {
       fail(*job, e.what());
     } catch (...) {
@@ -1021,17 +1066,20 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
     namespace flow = tbb::flow;
     flow::graph g;
     using Node = flow::function_node<JobPtr, JobPtr>;
-    auto make = [&](auto member, double StageSeconds::*field) {
-      return std::make_unique<Node>(g, flow::unlimited,
-                                    stage([&pipeline, member](Job& j) { (pipeline.*member)(j); }, field));
+    const double timeout_s = config.limits.asset_timeout_s;
+    auto make = [&](auto member, double StageSeconds::*field, const char* name) {
+      return std::make_unique<Node>(
+          g, flow::unlimited,
+          stage([&pipeline, member](Job& j) { (pipeline.*member)(j); }, field, name, timeout_s, options));
     };
-    auto fingerprint = make(&Pipeline::fingerprint, &StageSeconds::fingerprint);
-    auto load = make(&Pipeline::load, &StageSeconds::load);
-    auto analyse = make(&Pipeline::analyse, &StageSeconds::analyse);
-    auto lods = make(&Pipeline::lods, &StageSeconds::lods);
-    auto post = make(&Pipeline::post_process, &StageSeconds::post_process);
-    auto measure = make(&Pipeline::measure, &StageSeconds::measure);
-    auto write = make(&Pipeline::write, &StageSeconds::write);
+    // The names are those of the timeout message ("timed out in the simplify stage").
+    auto fingerprint = make(&Pipeline::fingerprint, &StageSeconds::fingerprint, "fingerprint");
+    auto load = make(&Pipeline::load, &StageSeconds::load, "load");
+    auto analyse = make(&Pipeline::analyse, &StageSeconds::analyse, "analyse");
+    auto lods = make(&Pipeline::lods, &StageSeconds::lods, "simplify");
+    auto post = make(&Pipeline::post_process, &StageSeconds::post_process, "post-process");
+    auto measure = make(&Pipeline::measure, &StageSeconds::measure, "evaluate");
+    auto write = make(&Pipeline::write, &StageSeconds::write, "write");
 
     auto start = [&](const std::vector<Pending>& batch) {
       for (const Pending& p : batch) {

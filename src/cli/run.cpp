@@ -127,6 +127,7 @@ struct RunArgs {
   unsigned jobs = 0;
   bool force = false;
   bool strict = false;
+  double asset_timeout_s = -1;  // < 0: the config's defaults.asset_timeout_s
 };
 
 // Config and options shared by `run` and `bench`; prints the problem and returns nullopt on a usage error.
@@ -162,8 +163,9 @@ void print_summary(const batch::RunResult& r) {
 }
 
 void run_command(const RunArgs& a) {
-  const std::optional<batch::BatchConfig> config = load_config_or_report(a.config);
+  std::optional<batch::BatchConfig> config = load_config_or_report(a.config);
   if (!config) return set_exit_code(2);
+  if (a.asset_timeout_s >= 0) config->limits.asset_timeout_s = a.asset_timeout_s;
   batch::RunOptions options{
       .config_file = a.config, .input_dir = a.input, .output_dir = a.output, .jobs = a.jobs, .force = a.force};
   try {
@@ -288,6 +290,10 @@ void register_run(CLI::App& app) {
   cmd->add_option("--memory-limit", a->memory_limit,
                   "memory the run stays under, e.g. 4G or 512M (default: half the RAM); assets start only while "
                   "their estimated memory fits");
+  cmd->add_option("--asset-timeout", a->asset_timeout_s,
+                  "seconds one asset may run; a slower one fails with the stage it was in and the run goes on "
+                  "(0 = no limit; default: the config's defaults.asset_timeout_s, else none)")
+      ->check(CLI::NonNegativeNumber);
   cmd->callback([a] { run_command(*a); });
 }
 

@@ -320,6 +320,29 @@ TEST(BatchCli, UsageAndConfigErrorsExitTwoAndWriteNothing) {
   EXPECT_FALSE(fs::exists(dir / "out"));
 }
 
+TEST(BatchCli, AssetTimeoutFailsSlowAssetsAndTheRunGoesOn) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_timeout");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 6);
+  const fs::path config = testlib::write_config(dir);
+  // Too short for any asset: each fails with its stage, exit 1, the report lists them and no LOD is written.
+  const CliResult r = run_cli(run_args(config, lib.root, dir / "out", "--asset-timeout 0.000001"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("props/prop_0.obj: timed out in the fingerprint stage (asset timeout 1e-06 s)"),
+            std::string::npos)
+      << r.output;
+  const Json report = Json::parse(lodforge::io::read_file(dir / "out/report.json"));
+  EXPECT_EQ(report["summary"]["failed"], lib.files.size());
+  EXPECT_TRUE(testlib::read_outputs(dir / "out").empty());
+  // The config's default applies unless the flag says otherwise; 0 is no limit.
+  Json doc = Json::parse(testlib::config_text());
+  doc["defaults"]["asset_timeout_s"] = 1e-6;
+  std::ofstream(dir / "limited.json") << doc.dump();
+  EXPECT_EQ(run_cli(run_args(dir / "limited.json", lib.root, dir / "out2")).exit_code, 1);
+  EXPECT_EQ(run_cli(run_args(dir / "limited.json", lib.root, dir / "out2", "--asset-timeout 0")).exit_code, 0);
+  EXPECT_EQ(run_cli(run_args(config, lib.root, dir / "out3", "--asset-timeout -1")).exit_code, 2);
+  EXPECT_NE(run_cli("run --help").output.find("--asset-timeout"), std::string::npos);
+}
+
 TEST(BatchCli, KilledRunResumesToIdenticalOutputWithoutPartialFiles) {
   const fs::path dir = lodforge::testing::temp_dir("batch_cli_kill");
   const testlib::Library lib = testlib::write_library(dir / "lib", 200);

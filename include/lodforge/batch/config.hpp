@@ -129,11 +129,21 @@ struct OutputOptions {
   friend bool operator==(const OutputOptions&, const OutputOptions&) = default;
 };
 
+// How long a run may spend on one asset. In `defaults` only, and no part of an asset's cache key: a limit
+// changes whether an asset finishes, never what it produces.
+struct RunLimits {
+  // An asset still running this many seconds after it started fails ("timed out in the <stage> stage") and
+  // the run goes on with the others; 0 = no limit. `lodforge run --asset-timeout` overrides it.
+  double asset_timeout_s = 0;
+  friend bool operator==(const RunLimits&, const RunLimits&) = default;
+};
+
 struct BatchConfig {
   int version = kConfigVersion;
   std::string description;
   LodOptions defaults;  // built-in defaults < `defaults`
   OutputOptions output;
+  RunLimits limits;
   std::vector<AssetClass> classes;  // in file order: the first class whose globs match wins
   std::string default_class;        // class of assets no glob matches; empty = such assets are skipped
 };

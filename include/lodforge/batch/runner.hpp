@@ -18,6 +18,12 @@
 //     plus the new asset's footprint fits in the limit. Freed memory is handed back to the OS after each large
 //     asset, so (b) sees live memory. One asset larger than the whole budget still runs, alone.
 //   - Failure isolation: any exception inside a stage fails that asset only (recorded with its message).
+//   - Timeouts: with RunLimits::asset_timeout_s (config `defaults.asset_timeout_s`, `run --asset-timeout`) an
+//     asset still running that long after its first stage started fails with "timed out in the <stage> stage
+//     (asset timeout N s)", stage one of fingerprint, load, analyse, simplify, post-process, evaluate, write.
+//     The deadline is checked at every stage boundary, between LODs, inside eval's sampling loops and before
+//     the outputs are published, so nothing of a timed-out asset is written; a simplify() call in progress is
+//     not interrupted (the engines take no stop hook yet), so an asset can overrun by one LOD's simplification.
 //   - Incremental: see cache.hpp. Outputs are staged and renamed into place, then the cache entry is written.
 //   - Duplicate meshes (same content and class) are simplified once per run; the copies reuse the result.
 #pragma once
@@ -88,6 +94,8 @@ struct RunOptions {
   const std::atomic<bool>* cancel = nullptr;
   // Testing aid: admit at most this many assets (0 = all), as if the run were stopped there.
   std::size_t stop_after = 0;
+  // Testing aid: called as an asset enters a stage ("load", "simplify", "evaluate", ...), on the stage's thread.
+  std::function<void(const std::string& path, const char* stage)> on_stage_start{};
 };
 
 // Seconds spent per stage, summed over assets (cache hits count only their lookup).

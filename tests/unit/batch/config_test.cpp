@@ -376,6 +376,30 @@ TEST(BatchConfig, EffectiveConfigParsesBackToItself) {
   }
 }
 
+TEST(BatchConfig, AssetTimeoutIsARunLimitOutsideTheCacheKey) {
+  const BatchConfig none = parse_config(minimal());
+  EXPECT_EQ(none.limits.asset_timeout_s, 0.0);
+  EXPECT_EQ(effective_config_json(none)["defaults"]["asset_timeout_s"], 0.0);
+  Json doc = minimal();
+  doc["defaults"] = {{"asset_timeout_s", 90.5}};
+  const BatchConfig c = parse_config(doc);
+  EXPECT_EQ(c.limits.asset_timeout_s, 90.5);
+  const Json e = effective_config_json(c);
+  EXPECT_EQ(e["defaults"]["asset_timeout_s"], 90.5);
+  EXPECT_EQ(parse_config(e).limits.asset_timeout_s, 90.5);
+  // A limit changes whether an asset finishes, never what it produces: the cache key does not see it.
+  EXPECT_EQ(effective_class_json(c, c.classes[0]), effective_class_json(none, none.classes[0]));
+}
+
+TEST(BatchConfigErrors, AssetTimeout) {
+  EXPECT_EQ(error_with("/defaults/asset_timeout_s", -1), expected("defaults.asset_timeout_s: must be >= 0"));
+  EXPECT_EQ(error_with("/defaults/asset_timeout_s", "1m"),
+            expected("defaults.asset_timeout_s: must be a number, got string \"1m\""));
+  // A run limit, not an option of a class or a LOD.
+  EXPECT_EQ(error_with("/classes/0/options/asset_timeout_s", 5),
+            expected(std::string("classes[0].options.asset_timeout_s: unknown key; allowed: ") + kOptionKeys));
+}
+
 TEST(BatchConfig, EffectiveClassJsonCarriesOutputOptions) {
   const BatchConfig c = parse_config(minimal());
   const Json j = effective_class_json(c, c.classes[0]);
@@ -537,8 +561,9 @@ TEST(BatchConfigErrors, RedirectedKeys) {
 }
 
 TEST(BatchConfigErrors, UnknownDefaultsKeyListsAllowedKeys) {
-  EXPECT_EQ(error_with("/defaults/ratio", 0.5), expected(std::string("defaults.ratio: unknown key; allowed: ") +
-                                                         kOptionKeys + ", gltf_lods, post_process, write_source_lod0"));
+  EXPECT_EQ(error_with("/defaults/ratio", 0.5),
+            expected(std::string("defaults.ratio: unknown key; allowed: ") + kOptionKeys +
+                     ", gltf_lods, post_process, write_source_lod0, asset_timeout_s"));
 }
 
 TEST(BatchConfigErrors, OutputOptions) {

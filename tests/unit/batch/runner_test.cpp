@@ -6,7 +6,9 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <set>
+#include <thread>
 
 #include "library_fixture.hpp"
 #include "lodforge/batch/cache.hpp"
@@ -550,6 +552,66 @@ TEST(BatchRunner, FootprintEstimateCoversTheMeasuredPeakInEveryFormat) {
     EXPECT_LE(per_triangle, 5000.0) << name;
   }
   EXPECT_EQ(estimate_footprint(dir / "missing.obj"), kFootprintOverhead);
+}
+
+// A timeout no asset can meet: every asset fails in its first stage, nothing of any is written, and the run
+// still ends normally with a valid report. Cache hits are finished work: the same timeout fails none of them.
+TEST(BatchRunner, TinyAssetTimeoutFailsEveryAssetAndWritesNothing) {
+  const fs::path dir = testing::temp_dir("batch_runner_tiny_timeout");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 10);
+  BatchConfig tiny = config();
+  tiny.limits.asset_timeout_s = 1e-6;
+  const RunResult r = run_batch(tiny, {.input_dir = lib.root, .output_dir = dir / "out", .jobs = 2});
+  EXPECT_EQ(r.failed, lib.files.size());
+  EXPECT_EQ(r.succeeded, 0u);
+  for (const std::string& f : r.failures) {
+    EXPECT_NE(f.find(": timed out in the fingerprint stage (asset timeout 1e-06 s)"), std::string::npos) << f;
+  }
+  EXPECT_TRUE(check_report(r.report).empty());
+  EXPECT_EQ(r.report["effective_config"]["defaults"]["asset_timeout_s"], 1e-6);
+  EXPECT_TRUE(testlib::read_outputs(dir / "out").empty());
+  EXPECT_TRUE(testlib::leftovers(dir / "out").empty());
+
+  ASSERT_EQ(run(lib.root, dir / "out", 2).succeeded, lib.files.size());
+  const RunResult hits = run_batch(tiny, {.input_dir = lib.root, .output_dir = dir / "out", .jobs = 2});
+  EXPECT_EQ(hits.cache_hits, lib.files.size());
+  EXPECT_EQ(hits.failed, 0u);
+}
+
+// One asset held in a stage past the timeout (the stage hook sleeps) fails naming that stage, nothing of it is
+// written, and every other asset completes; failures are not cached, so a run without the limit builds it.
+TEST(BatchRunner, AssetTimeoutFailsOnlyTheSlowAssetWithTheStageItWasIn) {
+  const fs::path dir = testing::temp_dir("batch_runner_timeout");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 8);
+  const std::string slow = "props/prop_0.obj";
+  BatchConfig limited = config();
+  limited.limits.asset_timeout_s = 1.0;
+  for (const std::string stage : {"load", "simplify", "evaluate", "write"}) {
+    SCOPED_TRACE(stage);
+    const fs::path out = dir / ("out_" + stage);
+    RunOptions options{.input_dir = lib.root, .output_dir = out, .jobs = 2};
+    options.on_stage_start = [&](const std::string& path, const char* entered) {
+      if (path == slow && entered == stage) std::this_thread::sleep_for(std::chrono::milliseconds(1300));
+    };
+    const RunResult r = run_batch(limited, options);
+    EXPECT_EQ(r.succeeded, lib.files.size() - 1);
+    ASSERT_EQ(r.failures.size(), 1u);
+    const std::string reason = "timed out in the " + stage + " stage (asset timeout 1 s)";
+    EXPECT_EQ(r.failures[0], slow + ": " + reason);
+    const Json& record = record_of(r.report, slow);
+    EXPECT_EQ(record["status"], "failed");
+    EXPECT_EQ(record["error"], reason);
+    EXPECT_TRUE(record["outputs"].empty());
+    EXPECT_TRUE(check_report(r.report).empty());
+    for (const auto& [file, bytes] : testlib::read_outputs(out)) {
+      EXPECT_NE(file.rfind("props/prop_0", 0), 0u) << file << ": nothing of the timed-out asset";
+    }
+    EXPECT_TRUE(fs::exists(out / "props/kitchen/prop_1_LOD1.stl")) << "the others completed";
+    EXPECT_TRUE(testlib::leftovers(out).empty());
+    const RunResult again = run(lib.root, out, 2);
+    EXPECT_EQ(again.succeeded, lib.files.size());
+    EXPECT_EQ(again.cache_hits, lib.files.size() - 1);
+  }
 }
 
 TEST(BatchRunner, TightMemoryLimitStillFinishes) {
