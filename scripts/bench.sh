@@ -9,6 +9,11 @@
 #   scripts/bench.sh attributes [ARGS...] only lodforge_bench_attributes (attribute-aware vs position-only lodforge vs
 #                                         meshopt on the glTF corpus at 50/25/10%: distance, UV flips, chart spans,
 #                                         attribute RMS, throughput; --ratios, --reps N, --eval-samples N, --corpus DIR)
+#   scripts/bench.sh eval [ARGS...]       only lodforge_bench_eval (eval on degenerate and sliver-heavy meshes -- a
+#                                         fanned 20000-corner zig-zag polygon and friends -- against itself and a
+#                                         moved copy, vs a clean grid of the same triangle count: both times, the
+#                                         ratio (target <= 10x), BVH work per query; --triangles N, --reps N,
+#                                         --samples N, --threads N, --case NAME)
 #   scripts/bench.sh quad [ARGS...]       only lodforge_bench_quad (polychord engine vs edge_collapse and meshopt on
 #                                         the quad corpus at 50/25/10%, plus a generated 100k-quad torus; --ratios,
 #                                         --mesh FILE, --input DIR, --generated-quads N, --no-generated)
@@ -51,7 +56,8 @@ LOAD="$BUILD_DIR/tests/bench/lodforge_bench_load"
 BATCH="$BUILD_DIR/tests/bench/lodforge_bench_batch"
 QUAD="$BUILD_DIR/tests/bench/lodforge_bench_quad"
 ATTRIBUTES="$BUILD_DIR/tests/bench/lodforge_bench_attributes"
-for b in "$SIMPLIFY" "$LOAD" "$BATCH" "$QUAD" "$ATTRIBUTES"; do
+EVAL="$BUILD_DIR/tests/bench/lodforge_bench_eval"
+for b in "$SIMPLIFY" "$LOAD" "$BATCH" "$QUAD" "$ATTRIBUTES" "$EVAL"; do
   if [ ! -x "$b" ]; then
     echo "bench: $b is missing (configure with -DLODFORGE_BUILD_BENCH=ON and build)" >&2
     exit 2
@@ -62,7 +68,7 @@ mkdir -p "$OUT_DIR"
 
 mode=all
 case "${1:-}" in
-  simplify | load | batch | quad | attributes) mode=$1; shift ;;
+  simplify | load | batch | quad | attributes | eval) mode=$1; shift ;;
 esac
 
 run_simplify() {
@@ -86,6 +92,7 @@ case $mode in
   load) run_load "$@" ;;
   batch) "$BATCH" "$@" ;;
   quad) "$QUAD" "$@" ;;
+  eval) "$EVAL" "$@" ;;
   attributes) "$ATTRIBUTES" --json "$OUT_DIR/bench-attributes.json" "$@" ;;
   all)
     load_args=()
