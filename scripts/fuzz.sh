@@ -39,8 +39,13 @@ if ! clang_has_libfuzzer; then
 fi
 SANITIZE=1 SANITIZE_BUILD_DIR="$BUILD" TARGETS="${targets[*]/#/fuzz_}" scripts/setup.sh
 
-# The glTF and config harnesses write each input to a file (their readers take paths): keep that in memory.
-[ -z "${TMPDIR:-}" ] && [ -w /dev/shm ] && export TMPDIR=/dev/shm
+# The glTF and config harnesses write each input to a file (their readers take paths): in memory where /dev/shm
+# is writable, in a folder removed at the end with what crashed harnesses left in it.
+scratch_parent=/dev/shm
+[ -w "$scratch_parent" ] || scratch_parent=${TMPDIR:-/tmp}
+TMPDIR=$(mktemp -d "$scratch_parent/lodforge-fuzz.XXXXXX")
+export TMPDIR
+trap 'rm -rf "$TMPDIR"' EXIT
 # Sanitizer reports name the source line and stop the process at the first one.
 export ASAN_OPTIONS=${ASAN_OPTIONS:-abort_on_error=1:detect_leaks=1}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1:suppressions=$PWD/tests/sanitize/ubsan.supp}
