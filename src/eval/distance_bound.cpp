@@ -31,6 +31,8 @@ struct Hit {
 
 // A node lying on a flat region of the target counts as on it within this fraction of `good_enough`.
 constexpr double kFlatSlack = 0.05;
+// ... and its walk may follow the target up to this fraction of `good_enough` off the start triangle's plane.
+constexpr double kPlaneTolerance = 0.5;
 
 Hit query(const TriangleBvh& bvh, const Vec3d& p) {
   const BvhHit h = bvh.closest_point(p);
@@ -110,16 +112,19 @@ double corner_bound(const Node& n, const SurfaceIndex& target, std::span<const s
   return best;
 }
 
-// A node lying on a flat region of the target made of many triangles (a CAD face tessellated into slivers):
-// walk the target's triangles from the one under the centroid across the edges that reach into the node
-// (projected onto that triangle's plane P), as long as they stay within `slack` of P. If no edge on the
-// border of the walked region reaches deeper than `slack` into the node, the node, shrunk by `slack`, lies in
-// the region's projection, and every point of the node is within
+// A node lying on a nearly flat region of the target made of many triangles (a CAD face tessellated into
+// slivers, or a small patch of a smooth surface): walk the target's triangles from the one under the centroid
+// across the edges that reach into the node, projected onto that triangle's plane P, as long as their corners
+// stay within `plane_tolerance` of P and they keep P's orientation (so the walked patch projects without
+// folds). If no edge on the border of the walked region reaches deeper than `slack` into the node, the node,
+// shrunk by `slack`, lies in the region's projection, and every point of the node is within
 //   (largest corner distance to P) + (largest distance of a walked vertex to P) + slack / sin(θmin / 2)
 // of the target, θmin the node's smallest angle. Returns that, or +inf where the walk fails.
-double flat_region_bound(const Node& n, const SurfaceIndex& target, std::uint32_t start, double slack) {
+double flat_region_bound(const Node& n, const SurfaceIndex& target, std::uint32_t start, const Vec3d& from,
+                         double slack, double plane_tolerance) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
-  constexpr std::size_t kMaxWalk = 64;
+  constexpr std::size_t kMaxWalk = 256;
+  constexpr std::size_t kSlots = 1024;  // open addressing over the walked triangles, under a quarter full
   if (start == kInvalidIndex || !(slack > 0)) return kInf;
   const auto t0 = target.bvh.triangle(start);
   Vec3d normal = cross(t0[1] - t0[0], t0[2] - t0[0]);
@@ -176,21 +181,36 @@ double flat_region_bound(const Node& n, const SurfaceIndex& target, std::uint32_
     return best;
   };
 
-  // The walk starts from the centroid's closest point on `start` (within slack of the centroid): it must lie
-  // inside the shrunk node, so the centroid must be deeper than twice the slack.
+  // The walk starts from `from`, a point of `start` (the centroid's closest point): it must lie inside the
+  // shrunk node.
   {
-    const P2 g{(q[0].x + q[1].x + q[2].x) / 3.0, (q[0].y + q[1].y + q[2].y) / 3.0};
-    if (!(depth_along(g, g, 0.0) > 2.0 * slack)) return kInf;
+    const P2 f = flat(from);
+    if (!(depth_along(f, f, 0.0) > slack)) return kInf;
   }
+  const double start_orientation = cross2(flat(t0[0]), flat(t0[1]), flat(t0[2]));
   double off_plane = 0;  // largest distance of a walked triangle's corner to P
   std::uint32_t walked[kMaxWalk];
+  std::uint32_t slots[kSlots];
+  std::fill(slots, slots + kSlots, kInvalidIndex);
+  // Inserts t; false if it was there.
+  auto insert = [&](std::uint32_t t) {
+    std::size_t i = (t * 2654435761u) % kSlots;
+    while (slots[i] != kInvalidIndex) {
+      if (slots[i] == t) return false;
+      i = (i + 1) % kSlots;
+    }
+    slots[i] = t;
+    return true;
+  };
   std::size_t count = 0, next = 0;
   walked[count++] = start;
+  insert(start);
   while (next < count) {
     const std::uint32_t t = walked[next++];
     const auto c = target.bvh.triangle(t);
     for (const Vec3d& v : c) off_plane = std::max(off_plane, std::abs(dot(v - t0[0], normal)));
-    if (off_plane > slack) return kInf;
+    if (off_plane > plane_tolerance) return kInf;
+    if (!(cross2(flat(c[0]), flat(c[1]), flat(c[2])) * start_orientation > 0)) return kInf;  // flipped in P
     for (int k = 0; k < 3; ++k) {
       if (!(penetration(flat(c[(k + 1) % 3]), flat(c[(k + 2) % 3])) > slack)) continue;
       const std::uint32_t u = target.bvh.neighbor(t, k);
@@ -208,9 +228,8 @@ double flat_region_bound(const Node& n, const SurfaceIndex& target, std::uint32_
         if (std::abs(side) > std::abs(far_side)) far_side = side;
       }
       if (!(cross2(a, b, flat(c[k])) * far_side < 0)) return kInf;
-      if (std::find(walked, walked + count, u) != walked + count) continue;
       if (count == kMaxWalk) return kInf;
-      walked[count++] = u;
+      if (insert(u)) walked[count++] = u;
     }
   }
   double corner_off = 0;
@@ -218,7 +237,7 @@ double flat_region_bound(const Node& n, const SurfaceIndex& target, std::uint32_
   return corner_off + off_plane + slack / min_sin_half;
 }
 
-Bound bound(const Node& n, const SurfaceIndex& target, double flat_slack) {
+Bound bound(const Node& n, const SurfaceIndex& target, double flat_slack, double plane_tolerance) {
   const double corner_max = std::max({n.h[0].distance, n.h[1].distance, n.h[2].distance});
   if (n.h[0].triangle != kInvalidIndex && n.h[0].triangle == n.h[1].triangle && n.h[0].triangle == n.h[2].triangle) {
     return {corner_max, corner_max, false};
@@ -233,7 +252,11 @@ Bound bound(const Node& n, const SurfaceIndex& target, double flat_slack) {
   // lying on a flat part of the target across its edges).
   const std::uint32_t candidates[] = {n.h[0].triangle, n.h[1].triangle, n.h[2].triangle, hg.triangle};
   upper = std::min(upper, corner_bound(n, target, candidates));
-  if (upper > flat_slack && hg.distance <= flat_slack) upper = std::min(upper, flat_region_bound(n, target, hg.triangle, flat_slack));
+  if (upper > flat_slack && hg.distance <= plane_tolerance && hg.triangle != kInvalidIndex) {
+    const auto [a, b, c] = target.bvh.triangle(hg.triangle);
+    const Vec3d from = closest_point_on_triangle(g, a, b, c).point;
+    upper = std::min(upper, flat_region_bound(n, target, hg.triangle, from, flat_slack, plane_tolerance));
+  }
   return {std::max(upper, std::max(corner_max, hg.distance)), std::max(corner_max, hg.distance), true};
 }
 
@@ -279,8 +302,10 @@ DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const
     return out;
   }
   const std::size_t max_queries = options.max_queries > 0 ? options.max_queries : 64 * triangles.size() + 1000000;
-  // How far a flat region may bend or a node reach past it and still count as lying on it (flat_region_bound).
+  // How far a node may reach past a flat region, and how far the region may bend, for the node to count as
+  // lying on it (flat_region_bound): small parts of what the caller calls good enough.
   const double flat_slack = options.good_enough > 0 ? kFlatSlack * options.good_enough : 1e-9 * target.bvh.bounds().diagonal();
+  const double plane_tolerance = options.good_enough > 0 ? kPlaneTolerance * options.good_enough : flat_slack;
   tbb::task_arena arena(options.threads == 0 ? tbb::task_arena::automatic : static_cast<int>(options.threads));
 
   // The corners once each.
@@ -308,7 +333,7 @@ DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const
     const std::size_t n = active.size();
     bounds.resize(n);
     parallel_ranges(arena, n, 256, [&](std::size_t b, std::size_t e) {
-      for (std::size_t i = b; i < e; ++i) bounds[i] = bound(active[i], target, flat_slack);
+      for (std::size_t i = b; i < e; ++i) bounds[i] = bound(active[i], target, flat_slack, plane_tolerance);
     });
     for (std::size_t i = 0; i < n; ++i) {
       out.lower = std::max(out.lower, bounds[i].lower);

@@ -42,7 +42,7 @@ constexpr double kFinestTolerance = 0.002;
 // Lipschitz bound only reaches zero by splitting without end.
 constexpr double kDecisionFraction = 0.9;
 // The output's reported bound is refined further, down to this fraction of the budget.
-constexpr double kReportFraction = 0.25;
+constexpr double kReportFraction = 0.5;
 // Closest-point queries allowed per output triangle (plus a base) when deciding a prefix and when refining
 // the reported bound: about what the evaluator spends on a LOD.
 constexpr std::size_t kDecisionQueries = 4, kReportQueries = 16, kBaseQueries = 50000;
