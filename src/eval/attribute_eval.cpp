@@ -1,6 +1,6 @@
 // Attribute, UV and skinning quality (see the header). Sources: Sander, Snyder, Gortler & Hoppe, "Texture
 // Mapping Progressive Meshes", SIGGRAPH 2001 (L2 / L∞ stretch); Cignoni, Rocchini & Scopigno 1998 (Metro
-// sampling, through evaluate()); ALGORITHMS.md 10.2-10.4.
+// sampling, through evaluate()).
 #include "lodforge/eval/attribute_eval.hpp"
 
 #include <tbb/parallel_for.h>

@@ -1,4 +1,4 @@
-// Polychord tracing (ALGORITHMS.md 4.1, after vcglib's PolychordCollapse walk and Daniels et al. 2008): from
+// Polychord tracing (after vcglib's PolychordCollapse walk and Daniels et al. 2008): from
 // a rung into its quad, across to the opposite side, to the face beyond, and again, in both directions.
 #include "lodforge/quad/polychord.hpp"
 

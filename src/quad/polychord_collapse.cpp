@@ -1,4 +1,4 @@
-// Sub-polychord collapse (ALGORITHMS.md 4.4-4.5): the quad-dominant LOD method A. Mason described in "Quad
+// Sub-polychord collapse: the quad-dominant LOD method A. Mason described in "Quad
 // Mesh Simplification in Frostbite" (GDC 2020), built on the polychord collapse of Daniels, Silva, Shepherd &
 // Cohen, "Quadrilateral mesh simplification" (SIGGRAPH Asia 2008), with Garland-Heckbert quadrics (1997) for
 // cost and placement. The guide-plane re-simplification pass of EA's US patent 10,043,310 is not part of it.
@@ -68,7 +68,7 @@ struct Entry {
 
 // A traced chord and its queue state. After a collapse nearby, a chord goes stale: its trace may be wrong,
 // but it keeps its queue entry (with the old key) and is re-traced only when that entry pops (lazy
-// invalidation, ALGORITHMS.md 4.4), since most stale chords never reach the top before they change again.
+// invalidation), since most stale chords never reach the top before they change again.
 struct Chord {
   enum class State : std::uint8_t { alive, stale, dead };
   Polychord trace;
@@ -421,7 +421,7 @@ double Engine::attribute_cost(std::uint32_t a, std::uint32_t b, std::uint32_t di
   return std::max(0.0, cost);
 }
 
-// Seed-and-grow search over one chord (ALGORITHMS.md 4.4): the cheapest seed window, grown one rung at either
+// Seed-and-grow search over one chord: the cheapest seed window, grown one rung at either
 // end while cost per removed triangle improves (stopping once it is clearly worse), against the whole chord.
 // Runs never hold two rungs that share a vertex (self-touching or self-intersecting strips), and remove at
 // most `cap` triangles.
@@ -523,7 +523,7 @@ std::optional<Candidate> Engine::best_candidate(const Chord& chord, long long ca
   double run_worst = *std::max_element(cost.begin() + run.first, cost.begin() + run.last + 1);
   long long max_conflict = -1;
   for (std::size_t k = run.first; k <= run.last; ++k) max_conflict = std::max(max_conflict, conflict[k]);
-  // Growth stops once the ratio is this much worse than the best seen (ALGORITHMS.md: "clearly worse").
+  // Growth stops once the ratio is this much worse than the best seen ("clearly worse").
   constexpr double kGiveUpFactor = 2.0;
   while (run.last - run.first + 1 < max_run) {
     std::optional<Candidate> option;

@@ -1,4 +1,4 @@
-// The quad part's working mesh and the generalised weld operator (ALGORITHMS.md 4.5; the weld idea is from
+// The quad part's working mesh and the generalised weld operator (the weld idea is from
 // A. Mason, "Quad Mesh Simplification in Frostbite", GDC 2020, on top of the polychord collapse of Daniels,
 // Silva, Shepherd & Cohen, "Quadrilateral mesh simplification", SIGGRAPH Asia 2008).
 #include "lodforge/quad/quad_mesh.hpp"

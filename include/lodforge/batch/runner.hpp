@@ -5,7 +5,7 @@
 //                                          .output_dir = "out", .jobs = 8});
 //   // r.report is report.json; OUT_DIR holds the LODs, report.json, report.html and .lodforge-cache/
 //
-// Per asset (DESIGN.md "Data flow"): fingerprint + cache lookup -> load -> analyse -> LOD chain -> post-process
+// Per asset: fingerprint + cache lookup -> load -> analyse -> LOD chain -> post-process
 // -> measure -> write -> report row. The stages are nodes of one flow graph and many assets are in flight at
 // once; the simplifier and eval run their own parallel loops inside an asset's node, in the same thread budget.
 //

@@ -1,4 +1,4 @@
-// Attribute, UV and skinning quality of a simplified mesh against its original (ALGORITHMS.md 10.2-10.4).
+// Attribute, UV and skinning quality of a simplified mesh against its original.
 //
 //   const AttributeEvalResult r = evaluate_attributes(original, lod);
 //

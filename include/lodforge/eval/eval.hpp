@@ -2,7 +2,7 @@
 // area-weighted samples (fixed seed) plus all vertices of each mesh, exact closest points on triangles
 // through a BVH, both directions, in parallel. The same numbers feed tests, the report and benchmarks.
 //
-// Protocol (ALGORITHMS.md 10.1): N area-uniform samples per direction, drawn by inverting the cumulative
+// Protocol: N area-uniform samples per direction, drawn by inverting the cumulative
 // triangle area with stratified uniforms (i + r_i) / N and folding (u, v) into the triangle; every vertex is
 // also sampled, for the maximum. Distances are exact point-to-triangle distances in double precision.
 #pragma once

@@ -1,5 +1,5 @@
 // Attribute quadrics in the memory-efficient form of H. Hoppe, "New Quadric Metric for Simplifying Meshes
-// with Appearance Attributes", IEEE Visualization 1999 (ALGORITHMS.md 2.2; the same layout as meshoptimizer's
+// with Appearance Attributes", IEEE Visualization 1999 (the same layout as meshoptimizer's
 // Quadric + QuadricGrad, and the O(m) reduction of Hoppe & Marschner 2000).
 //
 // For each face and attribute j, s_j(p) = g_j·p + d_j is the linear function over the face's plane that takes
@@ -89,7 +89,7 @@ struct AttributeLayout {
 
 // What the layout is made from: whether there are normals, the UV area of each set (0: no usable set) and
 // which colour sets exist, beside the surface area; weights λ as in SimplifyOptions::AttributeWeights.
-// Units (ALGORITHMS.md 2.2): a normal or colour component is scaled by sqrt(λ) × length_unit (about one mean
+// Units: a normal or colour component is scaled by sqrt(λ) × length_unit (about one mean
 // edge length: sqrt(2 × mean triangle area)), a UV set by sqrt(λ) × sqrt(area / UV area) (its texel density),
 // so every scaled attribute is a length. Groups with a zero or non-finite scale, or past kMaxAttributeDims,
 // are left out. Order: normal, UV sets, colour sets.

@@ -1,5 +1,5 @@
 // Comparing the skin weights of two vertices: the rule every engine applies before merging vertices of a
-// skinned mesh (ALGORITHMS.md 2.4, rule 1). Two vertices bound mostly to different joints separate when the
+// skinned mesh. Two vertices bound mostly to different joints separate when the
 // skeleton moves, so merging them folds the LOD under animation; inside a joint's blend band the weights
 // change gradually and neighbouring vertices may merge.
 #pragma once

@@ -1,4 +1,4 @@
-// Polychords (dual strips) of a mixed quad/triangle mesh (ALGORITHMS.md 4.1).
+// Polychords (dual strips) of a mixed quad/triangle mesh.
 //
 // A polychord is a maximal sequence of quads q_0 .. q_{K-1} joined through opposite sides. Consecutive quads
 // share a rung; quad q_k lies between rungs r_k and r_{k+1}:

@@ -1,4 +1,4 @@
-// Quad-preserving simplification by polychord and sub-polychord collapse (ALGORITHMS.md 4.4-4.5).
+// Quad-preserving simplification by polychord and sub-polychord collapse.
 //
 //   PolychordResult r = quad::simplify_polychord(mesh, {.target_triangles = 1000});
 //

@@ -1,5 +1,5 @@
 // The working mesh of the quad part: a polygon mesh (triangles, quads and n-gons; chords stop at n-gons) with
-// per-vertex face lists, and the generalised weld operator of ALGORITHMS.md 4.5 that applies any partition of
+// per-vertex face lists, and the generalised weld operator that applies any partition of
 // vertices into islands in one step, validates the result and rolls back on failure.
 //
 // Ids are those of the input mesh throughout (faces only shrink: a quad may become a triangle or die, an n-gon
