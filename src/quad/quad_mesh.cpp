@@ -296,21 +296,21 @@ long long QuadMesh::local_euler_edges(const std::vector<std::uint32_t>& faces) c
 // What one weld has worked out so far, passed from step to step.
 struct QuadMesh::WeldPlan {
   const std::vector<std::vector<std::uint32_t>>& islands;
-  std::vector<Vec3d> targets;               // where each island's survivor goes
-  std::vector<std::uint32_t> survivors;     // one per island
-  std::vector<std::uint32_t> assigned;      // island_of_ entries to reset
-  std::vector<std::uint32_t> affected;      // faces with an island vertex, ascending
-  std::vector<std::uint32_t> wedges_used;   // wedge_parent_ entries to reset
+  std::vector<Vec3d> targets{};               // where each island's survivor goes
+  std::vector<std::uint32_t> survivors{};     // one per island
+  std::vector<std::uint32_t> assigned{};      // island_of_ entries to reset
+  std::vector<std::uint32_t> affected{};      // faces with an island vertex, ascending
+  std::vector<std::uint32_t> wedges_used{};   // wedge_parent_ entries to reset
   // (class root, vertex, wedge) of every wedge of an island vertex, sorted: a class may hold one wedge per
   // vertex.
-  std::vector<std::tuple<std::uint32_t, std::uint32_t, std::uint32_t>> members;
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> class_rep;  // (root, representative wedge)
+  std::vector<std::tuple<std::uint32_t, std::uint32_t, std::uint32_t>> members{};
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> class_rep{};  // (root, representative wedge)
   // Affected face k's new corners are new_corners[new_begin[k], new_begin[k + 1]) as (vertex, wedge).
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> new_corners;
-  std::vector<std::uint32_t> new_begin;
-  std::vector<std::uint32_t> touched;        // every vertex of an affected face, ascending
-  std::vector<std::uint32_t> alive_touched;  // those still alive after the weld
-  std::vector<std::uint64_t> outside_edges;  // edges of affected faces between two vertices outside the islands
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> new_corners{};
+  std::vector<std::uint32_t> new_begin{};
+  std::vector<std::uint32_t> touched{};        // every vertex of an affected face, ascending
+  std::vector<std::uint32_t> alive_touched{};  // those still alive after the weld
+  std::vector<std::uint64_t> outside_edges{};  // edges of affected faces between two vertices outside the islands
 };
 
 WeldResult QuadMesh::weld(const std::vector<std::vector<std::uint32_t>>& islands,
