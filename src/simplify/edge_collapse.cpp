@@ -62,6 +62,11 @@ class GreedyEngine {
   SimplifyResult run(std::chrono::steady_clock::time_point start) {
     result_.timings.setup_ms = elapsed_ms(start);
     auto t0 = std::chrono::steady_clock::now();
+    if (options_.stop.requested()) {  // before the first full pass over the edges
+      stopped_ = true;
+      finish_result(cm_, max_error_, stop_, over_budget_, result_, stopped_);
+      return std::move(result_);
+    }
     collect();
     result_.timings.initial_costs_ms = elapsed_ms(t0);
 
@@ -81,7 +86,7 @@ class GreedyEngine {
       purge();
     }
     result_.timings.collapse_ms = elapsed_ms(t0);
-    finish_result(cm_, max_error_, stop_, over_budget_, result_);
+    finish_result(cm_, max_error_, stop_, over_budget_, result_, stopped_);
     return std::move(result_);
   }
 
@@ -91,9 +96,11 @@ class GreedyEngine {
     return make_entry(cost_bits(cm_.evaluate(u, v).cost), u, v, cm_.version(u) + cm_.version(v));
   }
 
-  // Whether to stop before the next round: the target, or the caller's stop policy.
-  bool stop() const {
+  // Whether to stop before the next round: the target, a stop request (one poll a round: a round is a batch of
+  // collapses), or the caller's stop policy.
+  bool stop() {
     if (stop_.reached(cm_.alive_faces())) return true;
+    if (options_.stop.requested()) return stopped_ = true;
     return policies_.stop && policies_.stop({.triangles = cm_.alive_faces(),
                                              .collapses = result_.collapses,
                                              .rounds = result_.rounds,
@@ -345,6 +352,7 @@ class GreedyEngine {
   ParkingLot parked_;
   tbb::enumerable_thread_specific<Scratch> scratch_;
   bool over_budget_ = false;
+  bool stopped_ = false;    // options_.stop was requested
   double max_error_ = 0.0;  // largest committed Evaluation::error
 
   // Per-round buffers, kept across rounds to avoid reallocation.
@@ -379,13 +387,14 @@ double normalised_budget_squared(const StopRule& stop, double scale) {
 }
 
 void finish_result(const CollapseMesh& cm, double max_error, const StopRule& stop, bool over_budget,
-                   SimplifyResult& result) {
+                   SimplifyResult& result, bool stopped) {
   const auto t0 = std::chrono::steady_clock::now();
   result.mesh = cm.output();
   result.triangles_after = cm.alive_faces();
   result.qem_error_abs = cm.model_error(max_error);
   result.qem_error_rel = cm.diagonal() > 0.0 ? result.qem_error_abs / cm.diagonal() : 0.0;
   result.stop_reason = stop.reached(cm.alive_faces()) ? StopReason::target_reached
+                       : stopped                       ? StopReason::stopped
                        : over_budget                   ? StopReason::error_budget
                                                        : StopReason::no_valid_collapse;
   result.timings.output_ms = elapsed_ms(t0);

@@ -88,6 +88,7 @@ const char* stop_reason_name(StopReason r) {
     case StopReason::target_reached: return "target_reached";
     case StopReason::error_budget: return "error_budget";
     case StopReason::no_valid_collapse: return "no_valid_collapse";
+    case StopReason::stopped: return "stopped";
   }
   return "unknown";
 }
@@ -137,9 +138,22 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options, c
              .normal_weight = options.attribute_weights.normal,
              .uv_weight = options.attribute_weights.uv,
              .color_weight = options.attribute_weights.color,
-             .optimal_attributes = options.attribute_placement == AttributePlacement::optimal});
+             .optimal_attributes = options.attribute_placement == AttributePlacement::optimal,
+             .stop = options.stop});
   const double quad_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   SimplifyResult r;
+  if (q.stopped) {  // as far as the quad engine got: no hand-over, no budget measurement
+    r.mesh = std::move(q.mesh);
+    r.triangles_before = mesh.triangle_count();
+    r.triangles_after = q.triangles_after;
+    r.qem_error_abs = q.error_bound_abs;
+    r.collapses = q.collapses;
+    r.stop_reason = StopReason::stopped;
+    r.quads_before = q.quads_before;
+    r.quads_after = count_face_kinds(r.mesh).quads;
+    r.timings.collapse_ms = quad_ms;
+    return r;
+  }
   if (q.triangles_after > target) {
     // Where there are too few chords (few quads, or triangles between almost every pair of them), the quad
     // engine stops early, and its few collapses, all on short chords, can cost more than the whole reduction
@@ -186,7 +200,7 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options, c
   }
   const double diagonal = compute_bounds(mesh).diagonal();
   r.qem_error_rel = diagonal > 0.0 ? r.qem_error_abs / diagonal : 0.0;
-  if (verifies_budget(options)) {
+  if (verifies_budget(options) && r.stop_reason != StopReason::stopped) {
     // The quad engine keeps no replayable log: its output is measured, and where it exceeds the budget the
     // triangle engine, which backs off along its own log, makes the LOD from the input instead.
     const Mesh& reference = options.budget_reference != nullptr ? *options.budget_reference : mesh;
