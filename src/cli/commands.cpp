@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -269,11 +270,21 @@ void register_simplify(CLI::App& app) {
                     stop_reason_name(r.stop_reason),
                     r.timings.setup_ms + r.timings.initial_costs_ms + r.timings.collapse_ms + r.timings.output_ms);
         if (r.budget.verified) {
-          std::printf("  budget %.4f%%: %s; LOD to input: bound %.4f%%, measured %.4f%%%s; input to LOD: measured "
-                      "%.4f%% (sampled); %zu collapse(s) backed off, %zu prefix(es) measured, %.1f ms\n",
-                      percent(r.budget.budget_abs), r.budget.within ? "met" : "MISSED", percent(r.budget.bound_abs),
-                      percent(r.budget.sampled_abs), r.budget.certified ? "" : " (bound not refined to the budget: met by measurement)",
-                      percent(r.budget.reverse_abs), r.budget.collapses_undone, r.budget.prefixes_measured,
+          // Measurements stop at the first distance over the budget: those print as "over".
+          auto figure = [&](double x) {
+            if (!std::isfinite(x)) return std::string("over the budget");
+            char text[32];
+            std::snprintf(text, sizeof text, "%.4f%%", percent(x));
+            return std::string(text);
+          };
+          const char* how = !r.budget.within    ? ""
+                            : r.budget.certified ? ""
+                                                 : " (bound not refined to the budget: met by measurement)";
+          std::printf("  budget %.4f%%: %s; LOD to input: bound %s, measured %s%s; input to LOD: measured "
+                      "%s (sampled); %zu collapse(s) backed off, %zu prefix(es) measured, %.1f ms\n",
+                      percent(r.budget.budget_abs), r.budget.within ? "met" : "MISSED",
+                      figure(r.budget.bound_abs).c_str(), figure(r.budget.sampled_abs).c_str(), how,
+                      figure(r.budget.reverse_abs).c_str(), r.budget.collapses_undone, r.budget.prefixes_measured,
                       r.budget.ms);
         }
         if (r.repeated_faces_removed > 0) {

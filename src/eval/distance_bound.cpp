@@ -5,10 +5,14 @@
 //    largest centroid-to-corner distance) of the centroid;
 //  - max over the corners of d(corner), when all three corners have their closest point on the same target
 //    triangle τ: a point Σ λᵢ vᵢ of T is within Σ λᵢ |vᵢ − cᵢ| of Σ λᵢ cᵢ, which lies in τ (convex). This one
-//    is exact where a LOD triangle lies on the source's surface, where the first would never converge.
+//    is exact where a LOD triangle lies on the source's surface, where the first would never converge. The
+//    same holds for two target triangles that share an edge and lie flat (their union convex, up to a slack),
+//    so parts of a LOD lying on a flat region of the target converge across its edges too.
 #include "lodforge/eval/distance_bound.hpp"
 
 #include <algorithm>
+#include <array>
+#include <span>
 #include <cmath>
 
 #include <tbb/blocked_range.h>
@@ -24,6 +28,11 @@ struct Hit {
   double distance = 0;
   std::uint32_t triangle = kInvalidIndex;
 };
+
+// A node lying on a flat region of the target counts as on it within this fraction of `good_enough`.
+constexpr double kFlatSlack = 0.05;
+// ... and its walk may follow the target up to this fraction of `good_enough` off the start triangle's plane.
+constexpr double kPlaneTolerance = 0.5;
 
 Hit query(const TriangleBvh& bvh, const Vec3d& p) {
   const BvhHit h = bvh.closest_point(p);
@@ -41,20 +50,194 @@ struct Bound {
   bool queried = false;  // the centroid was measured
 };
 
-// Farthest corner of n from target triangle t.
-double farthest_corner(const Node& n, const SurfaceIndex& target, std::uint32_t t) {
-  const Vec3d& a = target.positions[target.indices[3 * std::size_t{t}]];
-  const Vec3d& b = target.positions[target.indices[3 * std::size_t{t} + 1]];
-  const Vec3d& c = target.positions[target.indices[3 * std::size_t{t} + 2]];
-  double d2 = 0;
-  for (const Vec3d& p : n.p) {
-    const Vec3d q = closest_point_on_triangle(p, a, b, c).point;
-    d2 = std::max(d2, dot(p - q, p - q));
+// Squared distances of n's corners to target triangle t.
+std::array<double, 3> corner_distances(const Node& n, const SurfaceIndex& target, std::uint32_t t) {
+  const auto [a, b, c] = target.bvh.triangle(t);
+  std::array<double, 3> d2{};
+  for (int k = 0; k < 3; ++k) {
+    const Vec3d q = closest_point_on_triangle(n.p[k], a, b, c).point;
+    d2[k] = dot(n.p[k] - q, n.p[k] - q);
   }
-  return std::sqrt(d2);
+  return d2;
 }
 
-Bound bound(const Node& n, const SurfaceIndex& target) {
+// Target triangles t and u sharing the edge opposite t's corner k: when u's far corner, moved onto t's plane,
+// makes a convex quad with t, every point of the hull of t ∪ u is within 2h of t ∪ u (h that corner's distance
+// to the plane: h to move it onto the plane, h back). Returns 2h, or -1 where the quad is not convex.
+double flat_pair_slack(const SurfaceIndex& target, std::uint32_t t, int k, std::uint32_t u) {
+  const auto ct = target.bvh.triangle(t);
+  const auto cu = target.bvh.triangle(u);
+  const Vec3d& r = ct[k];
+  const Vec3d& p = ct[(k + 1) % 3];
+  const Vec3d& q = ct[(k + 2) % 3];
+  const std::uint32_t ip = target.indices[3 * std::size_t{t} + (k + 1) % 3];
+  const std::uint32_t iq = target.indices[3 * std::size_t{t} + (k + 2) % 3];
+  int far = -1;
+  for (int j = 0; j < 3; ++j) {
+    const std::uint32_t i = target.indices[3 * std::size_t{u} + j];
+    if (i != ip && i != iq) far = j;
+  }
+  if (far < 0) return -1;
+  const Vec3d n = cross(p - r, q - r);
+  const double nn = dot(n, n);
+  if (!(nn > 0) || !std::isfinite(nn)) return -1;
+  const double off = dot(cu[far] - r, n) / nn;
+  const Vec3d s = cu[far] - n * off;  // on t's plane
+  auto side = [&](const Vec3d& a, const Vec3d& b, const Vec3d& c) { return dot(cross(b - a, c - a), n); };
+  // Convex: r and s on opposite sides of pq, p and q on opposite sides of rs.
+  if (!(side(p, q, r) * side(p, q, s) < 0) || !(side(r, s, p) * side(r, s, q) < 0)) return -1;
+  return 2.0 * std::abs(off) * std::sqrt(nn);
+}
+
+// The smallest corner bound over the candidate target triangles and the flat convex pairs they form with their
+// neighbours: a point Σ λᵢ vᵢ of the node is within Σ λᵢ |vᵢ − cᵢ| of Σ λᵢ cᵢ, cᵢ a closest point of a convex set.
+double corner_bound(const Node& n, const SurfaceIndex& target, std::span<const std::uint32_t> candidates) {
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < candidates.size(); ++i) {
+    const std::uint32_t t = candidates[i];
+    if (t == kInvalidIndex || std::find(candidates.begin(), candidates.begin() + i, t) != candidates.begin() + i) continue;
+    const std::array<double, 3> dt = corner_distances(n, target, t);
+    best = std::min(best, std::sqrt(std::max({dt[0], dt[1], dt[2]})));
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t u = target.bvh.neighbor(t, k);
+      if (u == kInvalidIndex) continue;
+      const double slack = flat_pair_slack(target, t, k, u);
+      if (slack < 0 || slack >= best) continue;
+      const std::array<double, 3> du = corner_distances(n, target, u);
+      double d2 = 0;
+      for (int c = 0; c < 3; ++c) d2 = std::max(d2, std::min(dt[c], du[c]));
+      best = std::min(best, std::sqrt(d2) + slack);
+    }
+  }
+  return best;
+}
+
+// A node lying on a nearly flat region of the target made of many triangles (a CAD face tessellated into
+// slivers, or a small patch of a smooth surface): walk the target's triangles from the one under the centroid
+// across the edges that reach into the node, projected onto that triangle's plane P, as long as their corners
+// stay within `plane_tolerance` of P and they keep P's orientation (so the walked patch projects without
+// folds). If no edge on the border of the walked region reaches deeper than `slack` into the node, the node,
+// shrunk by `slack`, lies in the region's projection, and every point of the node is within
+//   (largest corner distance to P) + (largest distance of a walked vertex to P) + slack / sin(θmin / 2)
+// of the target, θmin the node's smallest angle. Returns that, or +inf where the walk fails.
+double flat_region_bound(const Node& n, const SurfaceIndex& target, std::uint32_t start, const Vec3d& from,
+                         double slack, double plane_tolerance) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  constexpr std::size_t kMaxWalk = 256;
+  constexpr std::size_t kSlots = 1024;  // open addressing over the walked triangles, under a quarter full
+  if (start == kInvalidIndex || !(slack > 0)) return kInf;
+  const auto t0 = target.bvh.triangle(start);
+  Vec3d normal = cross(t0[1] - t0[0], t0[2] - t0[0]);
+  const double length = std::sqrt(dot(normal, normal));
+  if (!(length > 0) || !std::isfinite(length)) return kInf;
+  normal = normal * (1.0 / length);
+  Vec3d e1 = t0[1] - t0[0];
+  e1 = e1 * (1.0 / std::sqrt(dot(e1, e1)));
+  const Vec3d e2 = cross(normal, e1);
+  struct P2 {
+    double x, y;
+  };
+  auto flat = [&](const Vec3d& p) { return P2{dot(p - t0[0], e1), dot(p - t0[0], e2)}; };
+  auto cross2 = [](P2 a, P2 b, P2 c) { return (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x); };
+
+  const P2 q[3] = {flat(n.p[0]), flat(n.p[1]), flat(n.p[2])};
+  const double area2 = cross2(q[0], q[1], q[2]);
+  if (!(std::abs(area2) > 0)) return kInf;
+  const double sign = area2 > 0 ? 1.0 : -1.0;
+  double inv_len[3], min_sin_half = 1.0;
+  for (int i = 0; i < 3; ++i) {
+    const P2 a = q[i], b = q[(i + 1) % 3], c = q[(i + 2) % 3];
+    inv_len[i] = 1.0 / std::hypot(b.x - a.x, b.y - a.y);
+    // The angle at corner i, between its two edges.
+    const double ux = b.x - a.x, uy = b.y - a.y, vx = c.x - a.x, vy = c.y - a.y;
+    const double angle = std::atan2(std::abs(ux * vy - uy * vx), ux * vx + uy * vy);
+    min_sin_half = std::min(min_sin_half, std::sin(0.5 * angle));
+  }
+  if (!(min_sin_half > 0)) return kInf;
+  // Depth of a point inside the node: its distance to the nearest edge line (negative outside).
+  auto depth_along = [&](P2 a, P2 b, double t) {
+    const P2 x{a.x + t * (b.x - a.x), a.y + t * (b.y - a.y)};
+    double d = kInf;
+    for (int i = 0; i < 3; ++i) d = std::min(d, sign * cross2(q[i], q[(i + 1) % 3], x) * inv_len[i]);
+    return d;
+  };
+  // The deepest point of segment ab in the node: the minimum of three linear functions peaks at an end or
+  // where two of them cross.
+  auto penetration = [&](P2 a, P2 b) {
+    double f0[3], f1[3];
+    for (int i = 0; i < 3; ++i) {
+      f0[i] = sign * cross2(q[i], q[(i + 1) % 3], a) * inv_len[i];
+      f1[i] = sign * cross2(q[i], q[(i + 1) % 3], b) * inv_len[i];
+    }
+    double best = std::max(depth_along(a, b, 0.0), depth_along(a, b, 1.0));
+    for (int i = 0; i < 3; ++i) {
+      for (int j = i + 1; j < 3; ++j) {
+        const double denom = (f0[i] - f1[i]) - (f0[j] - f1[j]);
+        if (denom == 0) continue;
+        const double t = (f0[i] - f0[j]) / denom;
+        if (t > 0 && t < 1) best = std::max(best, depth_along(a, b, t));
+      }
+    }
+    return best;
+  };
+
+  // The walk starts from `from`, a point of `start` (the centroid's closest point): it must lie inside the
+  // shrunk node.
+  {
+    const P2 f = flat(from);
+    if (!(depth_along(f, f, 0.0) > slack)) return kInf;
+  }
+  const double start_orientation = cross2(flat(t0[0]), flat(t0[1]), flat(t0[2]));
+  double off_plane = 0;  // largest distance of a walked triangle's corner to P
+  std::uint32_t walked[kMaxWalk];
+  std::uint32_t slots[kSlots];
+  std::fill(slots, slots + kSlots, kInvalidIndex);
+  // Inserts t; false if it was there.
+  auto insert = [&](std::uint32_t t) {
+    std::size_t i = (t * 2654435761u) % kSlots;
+    while (slots[i] != kInvalidIndex) {
+      if (slots[i] == t) return false;
+      i = (i + 1) % kSlots;
+    }
+    slots[i] = t;
+    return true;
+  };
+  std::size_t count = 0, next = 0;
+  walked[count++] = start;
+  insert(start);
+  while (next < count) {
+    const std::uint32_t t = walked[next++];
+    const auto c = target.bvh.triangle(t);
+    for (const Vec3d& v : c) off_plane = std::max(off_plane, std::abs(dot(v - t0[0], normal)));
+    if (off_plane > plane_tolerance) return kInf;
+    if (!(cross2(flat(c[0]), flat(c[1]), flat(c[2])) * start_orientation > 0)) return kInf;  // flipped in P
+    for (int k = 0; k < 3; ++k) {
+      if (!(penetration(flat(c[(k + 1) % 3]), flat(c[(k + 2) % 3])) > slack)) continue;
+      const std::uint32_t u = target.bvh.neighbor(t, k);
+      if (u == kInvalidIndex) return kInf;  // the region's border runs through the node
+      // An edge of more than two triangles: each names the next, so a manifold one names t back.
+      bool manifold = false;
+      for (int j = 0; j < 3; ++j) manifold = manifold || target.bvh.neighbor(u, j) == t;
+      if (!manifold) return kInf;
+      // u must unfold to the other side of the edge (a fold back over t covers nothing new).
+      const auto cu = target.bvh.triangle(u);
+      const P2 a = flat(c[(k + 1) % 3]), b = flat(c[(k + 2) % 3]);
+      double far_side = 0;
+      for (const Vec3d& v : cu) {
+        const double side = cross2(a, b, flat(v));
+        if (std::abs(side) > std::abs(far_side)) far_side = side;
+      }
+      if (!(cross2(a, b, flat(c[k])) * far_side < 0)) return kInf;
+      if (count == kMaxWalk) return kInf;
+      if (insert(u)) walked[count++] = u;
+    }
+  }
+  double corner_off = 0;
+  for (const Vec3d& p : n.p) corner_off = std::max(corner_off, std::abs(dot(p - t0[0], normal)));
+  return corner_off + off_plane + slack / min_sin_half;
+}
+
+Bound bound(const Node& n, const SurfaceIndex& target, double flat_slack, double plane_tolerance) {
   const double corner_max = std::max({n.h[0].distance, n.h[1].distance, n.h[2].distance});
   if (n.h[0].triangle != kInvalidIndex && n.h[0].triangle == n.h[1].triangle && n.h[0].triangle == n.h[2].triangle) {
     return {corner_max, corner_max, false};
@@ -65,9 +248,14 @@ Bound bound(const Node& n, const SurfaceIndex& target) {
   const Hit hg = query(target.bvh, g);
   double upper = hg.distance + std::sqrt(r2);
   // Ties: a corner on an edge or vertex of the target may name any triangle there, so try each triangle
-  // named by a corner or the centroid as the common one.
-  for (const std::uint32_t t : {n.h[0].triangle, n.h[1].triangle, n.h[2].triangle, hg.triangle}) {
-    if (t != kInvalidIndex) upper = std::min(upper, farthest_corner(n, target, t));
+  // named by a corner or the centroid as the common one, alone and with its flat neighbours (a LOD triangle
+  // lying on a flat part of the target across its edges).
+  const std::uint32_t candidates[] = {n.h[0].triangle, n.h[1].triangle, n.h[2].triangle, hg.triangle};
+  upper = std::min(upper, corner_bound(n, target, candidates));
+  if (upper > flat_slack && hg.distance <= plane_tolerance && hg.triangle != kInvalidIndex) {
+    const auto [a, b, c] = target.bvh.triangle(hg.triangle);
+    const Vec3d from = closest_point_on_triangle(g, a, b, c).point;
+    upper = std::min(upper, flat_region_bound(n, target, hg.triangle, from, flat_slack, plane_tolerance));
   }
   return {std::max(upper, std::max(corner_max, hg.distance)), std::max(corner_max, hg.distance), true};
 }
@@ -100,6 +288,7 @@ DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const
       bool finite = true;
       for (std::uint32_t k = 0; k < 3; ++k) finite = finite && finite3(to_double(mesh.positions[idx[t + k]]));
       if (!finite) continue;
+      if (options.on_target != nullptr && t / 3 < options.on_target->size() && (*options.on_target)[t / 3]) continue;
       triangles.push_back(t);
       for (std::uint32_t k = 0; k < 3; ++k) used[idx[t + k]] = 1;
     }
@@ -113,6 +302,10 @@ DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const
     return out;
   }
   const std::size_t max_queries = options.max_queries > 0 ? options.max_queries : 64 * triangles.size() + 1000000;
+  // How far a node may reach past a flat region, and how far the region may bend, for the node to count as
+  // lying on it (flat_region_bound): small parts of what the caller calls good enough.
+  const double flat_slack = options.good_enough > 0 ? kFlatSlack * options.good_enough : 1e-9 * target.bvh.bounds().diagonal();
+  const double plane_tolerance = options.good_enough > 0 ? kPlaneTolerance * options.good_enough : flat_slack;
   tbb::task_arena arena(options.threads == 0 ? tbb::task_arena::automatic : static_cast<int>(options.threads));
 
   // The corners once each.
@@ -140,7 +333,7 @@ DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const
     const std::size_t n = active.size();
     bounds.resize(n);
     parallel_ranges(arena, n, 256, [&](std::size_t b, std::size_t e) {
-      for (std::size_t i = b; i < e; ++i) bounds[i] = bound(active[i], target);
+      for (std::size_t i = b; i < e; ++i) bounds[i] = bound(active[i], target, flat_slack, plane_tolerance);
     });
     for (std::size_t i = 0; i < n; ++i) {
       out.lower = std::max(out.lower, bounds[i].lower);
@@ -161,6 +354,17 @@ DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const
       } else {
         open = std::max(open, bounds[i].upper);
         split.push_back(static_cast<std::uint32_t>(i));
+      }
+    }
+    if (getenv("LF_DBG2")) {
+      fprintf(stderr, "round %d active %zu split %zu open %.3g enough %.3g lower %.3g\n", round, n, split.size(), open, enough, out.lower);
+      if (!split.empty() && (round + 1 >= options.max_rounds || out.queries + 7 * split.size() > max_queries)) {
+        std::vector<std::uint32_t> order(split);
+        std::sort(order.begin(), order.end(), [&](auto a, auto b) { return bounds[a].upper > bounds[b].upper; });
+        for (std::size_t j = 0; j < std::min<std::size_t>(5, order.size()); ++j) {
+          const Node& q = active[order[j]];
+          fprintf(stderr, "  node up %.3g lo %.3g  h %.3g %.3g %.3g tri %u %u %u  p0 %g %g %g size %.3g\n", bounds[order[j]].upper, bounds[order[j]].lower, q.h[0].distance, q.h[1].distance, q.h[2].distance, q.h[0].triangle, q.h[1].triangle, q.h[2].triangle, q.p[0][0], q.p[0][1], q.p[0][2], std::sqrt(dot(q.p[1]-q.p[0], q.p[1]-q.p[0])));
+        }
       }
     }
     if (split.empty() || round + 1 >= options.max_rounds || out.queries + 7 * split.size() > max_queries) {

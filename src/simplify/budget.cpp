@@ -3,16 +3,23 @@
 // The engines stop on their QEM error, an area-weighted RMS distance to the planes a vertex absorbed. That
 // ranks collapses well but bounds nothing: at the QEM's stop the measured Hausdorff distance is typically 2-15
 // times the budget (docs/budgets.md has the figures). So with a budget the engine runs with a collapse log,
-// and its output is measured against the reference surface:
-//   output → reference   certified upper bound (eval/distance_bound.hpp), which must be within the budget;
-//   reference → output   sampled at the reference's vertices and triangle centroids.
-// When either exceeds the budget, prefixes of the same collapse sequence are replayed on a fresh working mesh
-// and measured, by bisection: the longest prefix found whose measurement holds is the output. (The distance is
-// not monotone along the sequence, so this is a prefix that holds, not always the longest one.)
+// and its output is measured against the reference surface, first by samples both ways (the screen: cheap,
+// and it stops at the first point over the budget), then where those pass by a certified upper bound on
+// output → reference (eval/distance_bound.hpp). When the output fails, prefixes of the same collapse sequence
+// are replayed on a fresh working mesh by bisection: the longest prefix found whose measurement holds is the
+// output. (The distance is not monotone along the sequence, so this is a prefix that holds, not always the
+// longest one.)
 #include <algorithm>
+#include <array>
+#include <atomic>
+#include <bit>
 #include <chrono>
 #include <cmath>
+#include <iterator>
+#include <limits>
+#include <mutex>
 #include <optional>
+#include <unordered_set>
 #include <utility>
 #include <vector>
 
@@ -35,58 +42,211 @@ constexpr double kFinestTolerance = 0.002;
 // Lipschitz bound only reaches zero by splitting without end.
 constexpr double kDecisionFraction = 0.9;
 // The output's reported bound is refined further, down to this fraction of the budget.
-constexpr double kReportFraction = 0.25;
+constexpr double kReportFraction = 0.5;
 // Closest-point queries allowed per output triangle (plus a base) when deciding a prefix and when refining
 // the reported bound: about what the evaluator spends on a LOD.
 constexpr std::size_t kDecisionQueries = 4, kReportQueries = 16, kBaseQueries = 50000;
+// Output triangles are sampled on a grid of this spacing, in budgets (at most kMaxGrid steps per edge).
+constexpr double kGridSpacing = 4.0;
+// Searches deciding their steps by the screen before every step is measured in full.
+constexpr int kScreenedSearches = 3;
 // Bisection stops when the undecided range is at most this fraction of the log (and one collapse at least).
 constexpr std::size_t kResolutionDivisor = 128;
 
 struct Measurement {
   bool within = false;
-  bool certified = false;  // within by the certified bound (else by the bound's sampled maximum)
-  double bound = 0;        // output → reference, an upper bound (+inf when it gave up above the budget)
+  bool certified = false;  // output → reference held by the certified bound (else by its sampled maximum)
+  double bound = 0;        // output → reference, an upper bound (+inf when not computed or over the budget)
   double sampled = 0;      // output → reference, the largest distance measured
-  double reverse = 0;      // reference → output, sampled
+  double reverse = 0;      // reference → output, sampled (+inf when a sample exceeded the budget)
 };
 
-// The reference surface, prepared once: its BVH (for the certified bound) and its sample points.
+// Sampled points visited coarse to fine: every 64th, then every 8th, then the rest, each pass in order (the BVH
+// walks stay local). A budget that fails usually fails somewhere broad, so the first passes find it.
+constexpr std::size_t kPassStrides[] = {64, 8, 1};
+
+// The largest of distance(i) over the points i < n that pass `pass` visits; stops early, setting `over`, once one
+// exceeds `limit`. The value is the same for any thread count (exact maxima per chunk, combined by max).
+template <typename Distance>
+double pass_max(tbb::task_arena& arena, std::size_t pass, std::size_t n, double limit, std::atomic<bool>& over,
+                Distance&& distance) {
+  const std::size_t stride = kPassStrides[pass];
+  const std::size_t coarser = pass == 0 ? 0 : kPassStrides[pass - 1];
+  return arena.execute([&] {
+    return tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(0, (n + stride - 1) / stride, std::max<std::size_t>(1, 1024 / stride)), 0.0,
+        [&](const tbb::blocked_range<std::size_t>& r, double acc) {
+          if (over.load(std::memory_order_relaxed)) return acc;
+          std::uint32_t hint = kInvalidIndex;  // the previous answer: neighbouring points are near each other
+          for (std::size_t k = r.begin(); k < r.end(); ++k) {
+            const std::size_t i = k * stride;
+            if (coarser != 0 && i % coarser == 0) continue;  // measured by a coarser pass
+            const double d = distance(i, hint);
+            acc = std::max(acc, d);
+            if (d > limit) {
+              over.store(true, std::memory_order_relaxed);
+              break;
+            }
+          }
+          return acc;
+        },
+        [](double x, double y) { return std::max(x, y); });
+  });
+}
+
+// Exact positions: a LOD keeps the positions of the vertices it never moved, bit for bit, so a LOD triangle with
+// the corners of a reference triangle is that triangle (distance 0 both ways) and needs no measuring.
+using PointKey = std::array<std::uint32_t, 3>;
+using TriangleKey = std::array<std::uint32_t, 9>;
+
+struct KeyHash {
+  template <std::size_t N>
+  std::size_t operator()(const std::array<std::uint32_t, N>& key) const {
+    std::uint64_t h = 0x9E3779B97F4A7C15ull;
+    for (const std::uint32_t x : key) h = (h ^ x) * 0x100000001B3ull ^ (h >> 31);
+    return static_cast<std::size_t>(h ^ (h >> 29));
+  }
+};
+
+PointKey point_key(const Vec3d& p) {
+  return {std::bit_cast<std::uint32_t>(static_cast<float>(p[0])), std::bit_cast<std::uint32_t>(static_cast<float>(p[1])),
+          std::bit_cast<std::uint32_t>(static_cast<float>(p[2]))};
+}
+
+TriangleKey triangle_key(const SurfaceIndex& s, std::size_t t) {
+  std::array<PointKey, 3> c = {point_key(s.positions[s.indices[3 * t]]), point_key(s.positions[s.indices[3 * t + 1]]),
+                               point_key(s.positions[s.indices[3 * t + 2]])};
+  std::sort(c.begin(), c.end());
+  TriangleKey key;
+  for (std::size_t k = 0; k < 9; ++k) key[k] = c[k / 3][k % 3];
+  return key;
+}
+
+// A mesh's triangles and vertex positions as exact keys.
+struct SurfaceKeys {
+  explicit SurfaceKeys(const SurfaceIndex& s) {
+    const std::size_t n = s.indices.size() / 3;
+    triangles.reserve(n);
+    for (std::size_t t = 0; t < n; ++t) triangles.insert(triangle_key(s, t));
+    points.reserve(s.positions.size());
+    for (const Vec3d& p : s.positions) points.insert(point_key(p));
+  }
+  std::unordered_set<TriangleKey, KeyHash> triangles;
+  std::unordered_set<PointKey, KeyHash> points;
+};
+
+// Sample points of a mesh not found exactly in `other`: points inside its triangles, then its vertices (those
+// of a triangle with finite corners). Inside a triangle: its centroid, and where `spacing` > 0 the points of a
+// grid of about that spacing (at most kMaxGrid steps per edge; the corners are the vertices) where the
+// triangle is longer than that. `on_other` flags
+// the triangles found (in triangle order).
+constexpr int kMaxGrid = 6;
+std::vector<Vec3d> samples_not_in(const SurfaceIndex& s, const SurfaceKeys& other, std::vector<char>& on_other,
+                                  double spacing = 0.0) {
+  std::vector<Vec3d> samples;
+  const std::size_t n = s.indices.size() / 3;
+  on_other.assign(n, 0);
+  std::vector<char> used(s.positions.size(), 0);
+  for (std::size_t t = 0; t < n; ++t) {
+    const Vec3d& a = s.positions[s.indices[3 * t]];
+    const Vec3d& b = s.positions[s.indices[3 * t + 1]];
+    const Vec3d& c = s.positions[s.indices[3 * t + 2]];
+    const Vec3d g = (a + b + c) * (1.0 / 3.0);
+    if (!finite3(g)) continue;
+    for (std::size_t k = 0; k < 3; ++k) used[s.indices[3 * t + k]] = 1;
+    if (other.triangles.contains(triangle_key(s, t))) {
+      on_other[t] = 1;
+      continue;
+    }
+    samples.push_back(g);
+    if (!(spacing > 0)) continue;
+    const double longest = std::sqrt(std::max({dot(b - a, b - a), dot(c - b, c - b), dot(a - c, a - c)}));
+    if (!(longest > spacing)) continue;  // small: its corners and centroid are close enough together
+    const int steps = static_cast<int>(std::min(std::ceil(longest / spacing), double{kMaxGrid}));
+    for (int i = 0; i <= steps; ++i) {
+      for (int j = 0; i + j <= steps; ++j) {
+        if (i == steps || j == steps || i + j == 0) continue;  // the corners
+        const double u = double(i) / steps, v = double(j) / steps;
+        samples.push_back(a + (b - a) * u + (c - a) * v);
+      }
+    }
+  }
+  for (std::size_t v = 0; v < used.size(); ++v) {
+    if (used[v] && !other.points.contains(point_key(s.positions[v]))) samples.push_back(s.positions[v]);
+  }
+  return samples;
+}
+
+// The reference surface, prepared once: its BVH (for the certified bound) and its exact keys.
 class Reference {
  public:
-  Reference(const Mesh& mesh, unsigned threads) : index_(mesh), arena_(threads == 0 ? tbb::task_arena::automatic : static_cast<int>(threads)), threads_(threads) {
-    std::vector<char> used(index_.positions.size(), 0);
-    for (std::size_t t = 0; t + 2 < index_.indices.size(); t += 3) {
-      const Vec3d& a = index_.positions[index_.indices[t]];
-      const Vec3d& b = index_.positions[index_.indices[t + 1]];
-      const Vec3d& c = index_.positions[index_.indices[t + 2]];
-      const Vec3d g = (a + b + c) * (1.0 / 3.0);
-      if (!finite3(g)) continue;
-      samples_.push_back(g);
-      for (std::size_t k = 0; k < 3; ++k) used[index_.indices[t + k]] = 1;
-    }
-    for (std::size_t v = 0; v < used.size(); ++v) {
-      if (used[v]) samples_.push_back(index_.positions[v]);
-    }
-  }
+  Reference(const Mesh& mesh, unsigned threads)
+      : index_(mesh), keys_(index_), arena_(threads == 0 ? tbb::task_arena::automatic : static_cast<int>(threads)),
+        threads_(threads) {}
 
-  // A tighter bound on an output already known to hold (never looser than `known`).
-  double tighter_bound(const Mesh& output, double budget, double known) const {
-    const DistanceBound b = distance_bound(output, index_,
-                                           {.tolerance = kBoundTolerance,
-                                            .good_enough = kReportFraction * budget,
-                                            .max_queries = kReportQueries * output.triangle_count() + 4 * kBaseQueries,
-                                            .threads = threads_});
-    return std::min(known, b.upper);
-  }
-
-  Measurement measure(const Mesh& output, double budget) {
+  // Samples both ways, stopping at the first distance over the budget: output vertices and triangle centroids
+  // → reference, reference vertices and triangle centroids → output, coarse passes of both first. Points the
+  // output shares exactly with the reference are at distance 0 and skipped. Cheap, and decisive wherever the
+  // output fails; `on_target` receives the output triangles that are reference triangles.
+  Measurement screen(const Mesh& output, double budget, std::size_t passes, std::vector<char>& on_target) {
     Measurement m;
-    const std::size_t triangles = output.triangle_count();
+    const SurfaceIndex lod(output);
+    const SurfaceKeys lod_keys(lod);
+    std::vector<char> unused;
+    // The output's triangles are large and may bridge a concavity: sampled on a grid, not only at centroids.
+    const std::vector<Vec3d> forward = samples_not_in(lod, keys_, on_target, kGridSpacing * budget);
+    const std::vector<Vec3d> reverse = samples_not_in(index_, lod_keys, unused);
+    m.bound = std::numeric_limits<double>::infinity();
+    if (index_.empty() || lod.empty()) {  // nothing to measure against: only nothing against nothing holds
+      m.sampled = forward.empty() ? 0.0 : std::numeric_limits<double>::infinity();
+      m.reverse = reverse.empty() ? 0.0 : std::numeric_limits<double>::infinity();
+      m.within = m.sampled <= budget && m.reverse <= budget;
+      return m;
+    }
+    std::atomic<bool> over{false};
+    // Reference points that were over the budget in an earlier measurement (thin parts collapsed away) usually
+    // are again: try them first. Which ones were recorded depends on the threads; only the time does.
+    for (const Vec3d& p : suspects_) {
+      if (lod.bvh.closest_point(p).distance() > budget) {
+        over.store(true);
+        break;
+      }
+    }
+    for (std::size_t pass = 0; pass < passes && !over.load(); ++pass) {
+      m.sampled = std::max(m.sampled, pass_max(arena_, pass, forward.size(), budget, over, [&](std::size_t i, std::uint32_t& hint) {
+                             const BvhHit h = index_.bvh.closest_point(forward[i], hint);
+                             hint = h.triangle;
+                             return h.distance();
+                           }));
+      if (over.load()) break;
+      m.reverse = std::max(m.reverse, pass_max(arena_, pass, reverse.size(), budget, over, [&](std::size_t i, std::uint32_t& hint) {
+                             const BvhHit h = lod.bvh.closest_point(reverse[i], hint);
+                             hint = h.triangle;
+                             const double d = h.distance();
+                             if (d > budget) suspect(reverse[i]);
+                             return d;
+                           }));
+    }
+    // Which value stopped it depends on the threads: report only that it was over.
+    if (over.load()) m.sampled = m.reverse = std::numeric_limits<double>::infinity();
+    m.within = !over.load();
+    return m;
+  }
+
+  // screen(), then where it passes the certified bound output → reference, refined until it decides the
+  // budget (as far as its query allowance goes): the bound decides, or where it could not be refined far
+  // enough, the largest distance it measured.
+  Measurement measure(const Mesh& output, double budget) {
+    std::vector<char> on_target;
+    Measurement m = screen(output, budget, std::size(kPassStrides), on_target);
+    if (!m.within) return m;
+    const std::size_t measured = static_cast<std::size_t>(std::count(on_target.begin(), on_target.end(), 0));
     DistanceBoundOptions options{.tolerance = kBoundTolerance,
                                  .good_enough = kDecisionFraction * budget,
                                  .give_up_above = budget,
-                                 .max_queries = kDecisionQueries * triangles + kBaseQueries,
-                                 .threads = threads_};
+                                 .max_queries = kDecisionQueries * measured + kBaseQueries,
+                                 .threads = threads_,
+                                 .on_target = &on_target};
     DistanceBound b = distance_bound(output, index_, options);
     if (b.converged && b.upper > budget && b.lower < budget) {
       // Just under the budget: refine until the bound decides (the tolerance that separates them).
@@ -95,34 +255,44 @@ class Reference {
       b = distance_bound(output, index_, options);
     }
     m.bound = b.upper;
-    m.sampled = b.lower;
-    m.certified = b.converged && b.upper <= budget;
+    m.sampled = std::max(m.sampled, b.lower);
+    m.certified = !b.gave_up && b.upper <= budget;
     // Where the refinement could not finish (flat parts on the input), the largest measured distance decides.
-    if (b.gave_up || !(m.certified || (!b.converged && b.lower <= budget))) return m;
-    const SurfaceIndex lod(output);
-    if (lod.empty()) {
-      m.reverse = samples_.empty() ? 0.0 : std::numeric_limits<double>::infinity();
-    } else {
-      // Exact maxima per chunk, combined by max: the same for any thread count.
-      m.reverse = arena_.execute([&] {
-        return tbb::parallel_reduce(
-            tbb::blocked_range<std::size_t>(0, samples_.size(), 1024), 0.0,
-            [&](const tbb::blocked_range<std::size_t>& r, double acc) {
-              for (std::size_t i = r.begin(); i < r.end(); ++i) {
-                acc = std::max(acc, lod.bvh.closest_point(samples_[i]).distance());
-              }
-              return acc;
-            },
-            [](double x, double y) { return std::max(x, y); });
-      });
-    }
-    m.within = m.reverse <= budget;
+    m.within = !b.gave_up && (m.certified || (!b.converged && b.lower <= budget));
     return m;
   }
 
+  // A tighter bound on an output already known to hold (never looser than `known`), for the report.
+  double tighter_bound(const Mesh& output, double budget, double known) {
+    std::vector<char> on_target;
+    samples_not_in(SurfaceIndex(output), keys_, on_target);
+    const std::size_t measured = static_cast<std::size_t>(std::count(on_target.begin(), on_target.end(), 0));
+    const DistanceBound b = distance_bound(output, index_,
+                                           {.tolerance = kBoundTolerance,
+                                            .good_enough = kReportFraction * budget,
+                                            .max_queries = kReportQueries * measured + kBaseQueries,
+                                            .threads = threads_,
+                                            .on_target = &on_target});
+    return std::min(known, b.upper);
+  }
+
+  Measurement screen(const Mesh& output, double budget) {
+    std::vector<char> on_target;
+    return screen(output, budget, std::size(kPassStrides), on_target);
+  }
+
  private:
+  void suspect(const Vec3d& p) {
+    const std::lock_guard<std::mutex> lock(suspects_mutex_);
+    if (suspects_.size() == kMaxSuspects) suspects_.erase(suspects_.begin());
+    suspects_.push_back(p);
+  }
+  static constexpr std::size_t kMaxSuspects = 64;
+
   SurfaceIndex index_;
-  std::vector<Vec3d> samples_;
+  SurfaceKeys keys_;
+  std::vector<Vec3d> suspects_;
+  std::mutex suspects_mutex_;
   tbb::task_arena arena_;
   unsigned threads_;
 };
@@ -167,17 +337,17 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
   ++check.prefixes_measured;
   if (!full.within) {
     // Bisection over prefixes [lo, hi): prefix lo holds (the input itself does), prefix hi does not. The
-    // working mesh at lo is kept, so each step replays only the collapses between lo and the midpoint.
+    // working mesh at lo is kept, so each step replays only the collapses between lo and the midpoint. Steps
+    // are decided by the screen; the prefix found is then measured in full (the bound), and where that fails
+    // the search goes on below it, after a few tries deciding each step in full.
     Parallel parallel(options.threads);
     SimplifyOptions replay_options = options;
     replay_options.max_error_abs = replay_options.max_error_rel = -1.0;
-    std::optional<CollapseMesh> at_lo;
-    at_lo.emplace(triangles, replay_options, parallel);
     Scratch scratch;
+    std::optional<CollapseMesh> at_lo;
     std::size_t lo = 0, hi = log.size();
-    std::size_t resolution = std::max<std::size_t>(1, log.size() / kResolutionDivisor);
+    const std::size_t resolution = std::max<std::size_t>(1, log.size() / kResolutionDivisor);
     std::optional<Mesh> best;
-    Measurement best_measurement;
     // Replays records [from, to) on `cm`; false if a record no longer applies (it always should).
     auto replay = [&](CollapseMesh& cm, std::size_t from, std::size_t to) {
       for (std::size_t i = from; i < to; ++i) {
@@ -189,36 +359,56 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
       return true;
     };
     bool stopped = false;
-    while (hi - lo > resolution) {
-      if (options.stop.requested()) {  // one poll per prefix measured
+    for (int attempt = 0;; ++attempt) {
+      const bool in_full = attempt >= kScreenedSearches;
+      if (!at_lo) at_lo.emplace(triangles, replay_options, parallel);
+      while (hi - lo > resolution) {
+        if (options.stop.requested()) {  // one poll per prefix measured
+          stopped = true;
+          break;
+        }
+        const std::size_t mid = lo + (hi - lo) / 2;
+        CollapseMesh trial = *at_lo;
+        if (!replay(trial, lo, mid)) {
+          hi = mid;
+          continue;
+        }
+        Mesh out = trial.output();
+        const Measurement m = in_full ? reference.measure(out, budget) : reference.screen(out, budget);
+        ++check.prefixes_measured;
+        if (m.within) {
+          lo = mid;
+          at_lo.reset();
+          at_lo.emplace(std::move(trial));
+          best = std::move(out);
+          if (in_full) full = m;
+        } else {
+          hi = mid;
+        }
+      }
+      if (stopped) {  // prefix lo, as far as the search got
+        if (!best) best = at_lo->output();
+        break;
+      }
+      if (!best) {  // no prefix but the empty one held: the input as it is (within, unless a reference differs)
+        best = at_lo->output();
+        full = reference.measure(*best, budget);
+        ++check.prefixes_measured;
+        break;
+      }
+      if (in_full) break;
+      if (options.stop.requested()) {  // before the full measurement of the prefix found
         stopped = true;
         break;
       }
-      const std::size_t mid = lo + (hi - lo) / 2;
-      CollapseMesh trial = *at_lo;
-      if (!replay(trial, lo, mid)) {
-        hi = mid;
-        continue;
-      }
-      Mesh out = trial.output();
-      const Measurement m = reference.measure(out, budget);
+      full = reference.measure(*best, budget);
       ++check.prefixes_measured;
-      if (m.within) {
-        lo = mid;
-        at_lo.reset();
-        at_lo.emplace(std::move(trial));
-        best = std::move(out);
-        best_measurement = m;
-      } else {
-        hi = mid;
-      }
-    }
-    if (!best) {  // no prefix but the empty one held: the input as it is (within, unless a reference differs)
-      best = at_lo->output();
-      if (!stopped) {
-        best_measurement = reference.measure(*best, budget);
-        ++check.prefixes_measured;
-      }
+      if (full.within || lo == 0) break;
+      // The screen passed but the bound found a point over the budget: search below it.
+      hi = lo;
+      lo = 0;
+      best.reset();
+      at_lo.reset();
     }
     check.collapses_undone = log.size() - lo;
     double qem = 0.0;
@@ -229,7 +419,6 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
     result.qem_error_abs = at_lo->model_error(qem);
     result.qem_error_rel = at_lo->diagonal() > 0.0 ? result.qem_error_abs / at_lo->diagonal() : 0.0;
     result.stop_reason = stopped ? StopReason::stopped : StopReason::error_budget;
-    full = best_measurement;
   }
   if (result.stop_reason == StopReason::stopped) {  // the longest prefix found to hold so far, unrefined
     check.within = false;

@@ -6,6 +6,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <set>
 #include <stdexcept>
 #include <string>
@@ -115,7 +116,118 @@ const char* veto_name(Veto v) {
 
 namespace {
 
+// The polychord back-off stops when the undecided range of targets is this fraction of the reduction.
+constexpr std::size_t kPolychordResolutionDivisor = 32;
+
 bool verifies_budget(const SimplifyOptions& o) { return o.verify_budget && (o.max_error_abs >= 0.0 || o.max_error_rel >= 0.0); }
+
+// The quad output is compacted, so vertex ids changed; a locked vertex never moved, so it is found again by its
+// exact position.
+std::vector<std::uint32_t> locked_vertices_in(const Mesh& output, const Mesh& input,
+                                              const std::vector<std::uint32_t>& locked) {
+  std::set<std::array<float, 3>> locked_positions;
+  for (std::uint32_t v : locked) locked_positions.insert(input.positions[v].v);
+  std::vector<std::uint32_t> out;
+  for (std::uint32_t v = 0; v < output.vertex_count(); ++v) {
+    if (locked_positions.count(output.positions[v].v)) out.push_back(v);
+  }
+  return out;
+}
+
+// The quad engine's output as far as it got when SimplifyOptions::stop was requested: no hand-over, no budget.
+SimplifyResult stopped_quad_result(const Mesh& mesh, quad::PolychordResult&& q, double quad_ms) {
+  SimplifyResult r;
+  r.mesh = std::move(q.mesh);
+  r.triangles_before = mesh.triangle_count();
+  r.triangles_after = q.triangles_after;
+  r.qem_error_abs = q.error_bound_abs;
+  r.collapses = q.collapses;
+  r.stop_reason = StopReason::stopped;
+  r.quads_before = q.quads_before;
+  r.quads_after = count_face_kinds(r.mesh).quads;
+  r.timings.collapse_ms = quad_ms;
+  return r;
+}
+
+// How a polychord LOD was made: by the quad engine alone, handed over to the triangle engine from the quad
+// output, or by the triangle engine from the input.
+enum class PolychordPath { quad_only, handed_over, restarted };
+
+// A polychord LOD over its error budget. The quad engine keeps no replayable log, so its shorter runs are its
+// LODs at larger targets, each with its surface fit: where the quad output alone held and the triangle engine
+// took it further, that hand-over backs off along the triangle engine's log; where the quad output itself is
+// over the budget, the largest target whose LOD holds is found by bisection; where none holds, the triangle
+// engine makes the LOD from the input. `measured` counts the outputs measured.
+template <typename QuadOptions>
+SimplifyResult hold_polychord_budget(const Mesh& mesh, const SimplifyOptions& options, const CollapsePolicies& policies,
+                                     const Mesh& reference, const quad::PolychordResult& q,
+                                     const QuadOptions& quad_options, PolychordPath path, std::size_t& measured) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const StopRule stop = collapse::stop_rule(options, mesh.triangle_count(), compute_bounds(mesh).diagonal());
+  auto quad_result = [&](quad::PolychordResult&& p, const BudgetCheck& check) {
+    SimplifyResult r;
+    r.mesh = std::move(p.mesh);
+    if (options.attribute_placement == AttributePlacement::optimal) collapse::recompute_tangents(r.mesh);
+    r.triangles_after = p.triangles_after;
+    r.qem_error_abs = p.error_bound_abs;
+    r.collapses = p.collapses;
+    r.vetoes[Veto::weld] = p.rejected;
+    r.vetoes[Veto::error_budget] = p.over_budget;
+    r.stop_reason = StopReason::error_budget;
+    r.budget = check;
+    r.budget.collapses_undone = q.collapses > p.collapses ? q.collapses - p.collapses : 0;
+    return r;
+  };
+  SimplifyOptions rest = options;
+  rest.engine = Engine::edge_collapse;
+  rest.budget_reference = &reference;
+  BudgetCheck quad_check;
+  if (path == PolychordPath::handed_over) {
+    quad_check = collapse::measure_budget(q.mesh, reference, stop.max_error, options.threads);
+    ++measured;
+  }
+  if (quad_check.within) {
+    // The hand-over went over the budget: the triangle engine backs off along its own log from the quad output.
+    rest.locked_vertices = locked_vertices_in(q.mesh, mesh, options.locked_vertices);
+    SimplifyResult r = collapse::run_within_budget(collapse::run_edge_collapse, triangulated(q.mesh), rest, policies);
+    measured += r.budget.prefixes_measured;
+    r.mesh = quad::recover_quads(r.mesh, {.keep_triangles = true});
+    r.collapses += q.collapses;
+    r.vetoes[Veto::weld] += q.rejected;
+    return r;
+  }
+  // Bisection over the quad engine's target: `fails` gives a LOD over the budget, `holds` one within it.
+  const std::size_t before = mesh.triangle_count();
+  std::size_t fails = path == PolychordPath::restarted ? before : q.triangles_after, holds = before;
+  const std::size_t resolution = std::max<std::size_t>(1, (before - fails) / kPolychordResolutionDivisor);
+  std::optional<SimplifyResult> best;
+  while (holds - fails > resolution) {
+    if (options.stop.requested()) {  // one poll per target measured
+      if (best) best->stop_reason = StopReason::stopped;
+      return best ? std::move(*best) : stopped_quad_result(mesh, quad::PolychordResult(q), 0.0);
+    }
+    const std::size_t mid = fails + (holds - fails) / 2;
+    quad::PolychordResult trial = quad::simplify_polychord(mesh, quad_options(mid));
+    if (trial.stopped) return stopped_quad_result(mesh, std::move(trial), 0.0);
+    const BudgetCheck c = collapse::measure_budget(trial.mesh, reference, stop.max_error, options.threads);
+    ++measured;
+    if (c.within) {
+      holds = mid;
+      best = quad_result(std::move(trial), c);
+    } else {
+      fails = mid;
+    }
+  }
+  if (best && best->triangles_after < before) {
+    best->budget.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    return std::move(*best);
+  }
+  SimplifyResult r = collapse::run_within_budget(collapse::run_edge_collapse, triangulated(mesh), rest, policies);
+  measured += r.budget.prefixes_measured;
+  r.quad_engine_handed_over = true;
+  r.mesh = quad::recover_quads(r.mesh, {.keep_triangles = true});
+  return r;
+}
 
 // Engine::polychord: quad-preserving sub-polychord collapse (quad part) on the polygon mesh as it is; when it
 // stops before the target, the triangle engine takes its output the rest of the way (that output is then
@@ -125,8 +237,9 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options, c
   const auto t0 = std::chrono::steady_clock::now();
   const StopRule stop = collapse::stop_rule(options, mesh.triangle_count(), compute_bounds(mesh).diagonal());
   const std::size_t target = stop.target_triangles;
-  quad::PolychordResult q = quad::simplify_polychord(
-      mesh, {.target_triangles = std::max<std::size_t>(target, 1),
+  auto quad_options = [&](std::size_t quad_target) {
+    return quad::PolychordOptions{
+             .target_triangles = std::max<std::size_t>(quad_target, 1),
              .max_error_abs = stop.has_budget() ? stop.max_error : -1.0,
              .border_weight = options.border_mode == BorderMode::free ? 0.0 : options.border_weight,
              .max_flip_angle_deg = options.max_flip_angle_deg,
@@ -139,21 +252,13 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options, c
              .uv_weight = options.attribute_weights.uv,
              .color_weight = options.attribute_weights.color,
              .optimal_attributes = options.attribute_placement == AttributePlacement::optimal,
-             .stop = options.stop});
+             .stop = options.stop};
+  };
+  quad::PolychordResult q = quad::simplify_polychord(mesh, quad_options(target));
   const double quad_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   SimplifyResult r;
-  if (q.stopped) {  // as far as the quad engine got: no hand-over, no budget measurement
-    r.mesh = std::move(q.mesh);
-    r.triangles_before = mesh.triangle_count();
-    r.triangles_after = q.triangles_after;
-    r.qem_error_abs = q.error_bound_abs;
-    r.collapses = q.collapses;
-    r.stop_reason = StopReason::stopped;
-    r.quads_before = q.quads_before;
-    r.quads_after = count_face_kinds(r.mesh).quads;
-    r.timings.collapse_ms = quad_ms;
-    return r;
-  }
+  if (q.stopped) return stopped_quad_result(mesh, std::move(q), quad_ms);
+  PolychordPath path = PolychordPath::quad_only;
   if (q.triangles_after > target) {
     // Where there are too few chords (few quads, or triangles between almost every pair of them), the quad
     // engine stops early, and its few collapses, all on short chords, can cost more than the whole reduction
@@ -162,19 +267,11 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options, c
     // than half of the reduction asked, the triangle engine starts again from the input.
     const std::size_t before = mesh.triangle_count();
     const bool restart = 2 * (before - q.triangles_after) < before - target;
+    path = restart ? PolychordPath::restarted : PolychordPath::handed_over;
     SimplifyOptions rest = options;
     rest.engine = Engine::edge_collapse;
     rest.target_triangles = std::max<std::size_t>(target, 1);
-    if (!restart) {
-      // The quad output is compacted, so vertex ids changed; a locked vertex never moved, so it is found
-      // again by its exact position.
-      std::set<std::array<float, 3>> locked_positions;
-      for (std::uint32_t v : options.locked_vertices) locked_positions.insert(mesh.positions[v].v);
-      rest.locked_vertices.clear();
-      for (std::uint32_t v = 0; v < q.mesh.vertex_count(); ++v) {
-        if (locked_positions.count(q.mesh.positions[v].v)) rest.locked_vertices.push_back(v);
-      }
-    }
+    if (!restart) rest.locked_vertices = locked_vertices_in(q.mesh, mesh, options.locked_vertices);
     r = collapse::run_edge_collapse(triangulated(restart ? mesh : q.mesh), rest, policies);
     r.quad_engine_handed_over = restart;
     // Triangle pairs that split back into the same two triangles come back as quads (the quads the triangle
@@ -201,24 +298,14 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options, c
   const double diagonal = compute_bounds(mesh).diagonal();
   r.qem_error_rel = diagonal > 0.0 ? r.qem_error_abs / diagonal : 0.0;
   if (verifies_budget(options) && r.stop_reason != StopReason::stopped) {
-    // The quad engine keeps no replayable log: its output is measured, and where it exceeds the budget the
-    // triangle engine, which backs off along its own log, makes the LOD from the input instead.
     const Mesh& reference = options.budget_reference != nullptr ? *options.budget_reference : mesh;
     BudgetCheck check = collapse::measure_budget(r.mesh, reference, stop.max_error, options.threads);
-    if (!check.within) {
-      SimplifyOptions rest = options;
-      rest.engine = Engine::edge_collapse;
-      rest.budget_reference = &reference;
-      const Mesh input = triangulated(mesh);
-      r = collapse::run_within_budget(collapse::run_edge_collapse, input, rest, policies);
-      r.quad_engine_handed_over = true;
-      r.mesh = quad::recover_quads(r.mesh, {.keep_triangles = true});
-      r.budget.prefixes_measured += check.prefixes_measured;
-    } else {
-      r.budget = check;
-      r.error_bound_abs = check.bound_abs;
-      r.error_bound_rel = diagonal > 0.0 ? check.bound_abs / diagonal : 0.0;
-    }
+    std::size_t measured = check.prefixes_measured;
+    if (!check.within) r = hold_polychord_budget(mesh, options, policies, reference, q, quad_options, path, measured);
+    else r.budget = check;
+    r.budget.prefixes_measured = measured;
+    r.error_bound_abs = r.budget.bound_abs;
+    r.error_bound_rel = diagonal > 0.0 ? r.budget.bound_abs / diagonal : 0.0;
   }
   r.triangles_before = mesh.triangle_count();
   r.quads_before = q.quads_before;

@@ -98,6 +98,9 @@ class TriangleBvh {
 
   // Corners of triangle t (t < triangle_count()) as given.
   std::array<Vec3d, 3> triangle(std::uint32_t t) const;
+  // A triangle in the tree sharing the edge of t opposite its corner k (the same two vertex indices), or
+  // kInvalidIndex; around an edge of more than two triangles, each names the next.
+  std::uint32_t neighbor(std::uint32_t t, int k) const { return neighbor_[t][k]; }
 
   // The tree (for tests and debugging). The root is a child reference like those inside nodes: node
   // root().index when root().count == 0 (then node 0), else a single leaf. Slot s is triangle slot_triangle(s).

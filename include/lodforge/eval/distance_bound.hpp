@@ -42,6 +42,9 @@ struct DistanceBoundOptions {
   int max_rounds = 24;     // each round halves the triangles' size
   std::size_t max_queries = 0;  // 0: 64 × triangles + 1M; past it the bound stays valid, only looser
   unsigned threads = 0;    // 0 = all cores
+  // Optional, one flag per triangle of the mesh (in triangle_vertex_indices order): triangles known to lie on
+  // the target (a LOD's triangles the simplifier left as they were) bound at 0 and are not measured.
+  const std::vector<char>* on_target = nullptr;
 };
 
 struct DistanceBound {

@@ -86,5 +86,52 @@ TEST(DistanceBound, EmptyMeshesAndIdenticalSurfaces) {
   EXPECT_LE(same.upper, 1e-3);
 }
 
+// The unit square in z = 0 as `n` slivers (strips 1/n wide, 1 tall, each split in two), and the same square as
+// two triangles: a LOD lying flat on a CAD face tessellated into slivers.
+Mesh sliver_square(int n) {
+  Mesh m;
+  for (int i = 0; i <= n; ++i) m.add_vertex_with_wedge({{float(i) / float(n), 0.0f, 0.0f}});
+  for (int i = 0; i <= n; ++i) m.add_vertex_with_wedge({{float(i) / float(n), 1.0f, 0.0f}});
+  for (std::uint32_t i = 0; i < std::uint32_t(n); ++i) {
+    const std::uint32_t top = std::uint32_t(n) + 1;
+    m.add_face({i, i + 1, top + i + 1});
+    m.add_face({i, top + i + 1, top + i});
+  }
+  return m;
+}
+
+Mesh two_triangle_square(float size) {
+  Mesh m;
+  for (const Vec3f& p : {Vec3f{{0, 0, 0}}, Vec3f{{size, 0, 0}}, Vec3f{{size, size, 0}}, Vec3f{{0, size, 0}}}) {
+    m.add_vertex_with_wedge(p);
+  }
+  m.add_face({0, 1, 2});
+  m.add_face({0, 2, 3});
+  return m;
+}
+
+// The Lipschitz bound alone would split such a LOD without end (its centroid-to-corner radius halves per round,
+// the slivers it straddles double); walking the flat region across the slivers' edges certifies it at once.
+TEST(DistanceBound, ALodLyingOnAFlatFaceOfSliversConverges) {
+  const SurfaceIndex target(sliver_square(400));
+  const DistanceBound b = distance_bound(two_triangle_square(1.0f), target, {.tolerance = 0.1, .good_enough = 1e-3});
+  EXPECT_TRUE(b.converged);
+  EXPECT_LE(b.upper, 1e-3);
+  EXPECT_LT(b.queries, 2000u);
+}
+
+// A hole in a flat region under a LOD triangle is a real distance: the walk stops at the hole's border. A 10 × 10
+// grid without the cell [4,5]²: its centre is 0.5 from the rim.
+TEST(DistanceBound, AHoleInAFlatRegionUnderALodIsMeasured) {
+  const Mesh grid = testing::make_grid(10, 10, false);
+  const std::uint32_t cell = 4 * 10 + 4;  // its two triangles are faces 2 cell and 2 cell + 1
+  const std::uint32_t hole[] = {2 * cell, 2 * cell + 1};
+  const SurfaceIndex target(without_faces(grid, hole));
+  const DistanceBound b = distance_bound(two_triangle_square(10.0f), target, {.tolerance = 0.02, .good_enough = 1e-3});
+  EXPECT_GE(b.upper, 0.5);
+  EXPECT_GT(b.lower, 0.5 / 1.02 - 1e-9);
+  EXPECT_LE(b.upper, 0.5 * 1.02 + 1e-9);
+}
+
 }  // namespace
 }  // namespace lodforge

@@ -98,6 +98,26 @@ TEST(ErrorBudget, PolychordOutputsAreMeasuredToo) {
   EXPECT_LE(evaluate(bumpy, r.mesh).hausdorff_rel(), budget * (1 + kSamplingTolerance));
 }
 
+// Over its budget, the quad engine backs off along its own LODs (larger targets, each with its surface fit)
+// instead of handing the mesh to the triangle engine: the LOD holds and stays quads.
+TEST(ErrorBudget, PolychordBacksOffAlongItsOwnLodsAndKeepsQuads) {
+  Mesh bumpy = testing::make_grid(24, 24, true);
+  for (Vec3f& p : bumpy.positions) p[2] = static_cast<float>(0.6 * std::sin(0.5 * p[0]) * std::cos(0.4 * p[1]));
+  const double budget = 0.003;
+  const SimplifyOptions options{.target_ratio = 0.01, .max_error_rel = budget, .engine = Engine::polychord};
+  SimplifyOptions unverified = options;
+  unverified.verify_budget = false;
+  const SimplifyResult engine = simplify(bumpy, unverified);
+  ASSERT_GT(evaluate(bumpy, engine.mesh).hausdorff_rel(), budget) << "the quad engine's own stop is over the budget";
+  const SimplifyResult r = simplify(bumpy, options);
+  ASSERT_TRUE(r.budget.within);
+  EXPECT_FALSE(r.quad_engine_handed_over);
+  EXPECT_LT(r.triangles_after, bumpy.triangle_count());
+  EXPECT_GT(r.triangles_after, engine.triangles_after);
+  EXPECT_GE(2 * r.quads_after, r.mesh.face_count()) << "mostly quads";
+  EXPECT_LE(evaluate(bumpy, r.mesh).hausdorff_rel(), budget * (1 + kSamplingTolerance));
+}
+
 // The oracle: along the engine's own collapse sequence (one collapse per round), the longest prefix all of
 // whose shorter prefixes meet the budget by measurement. The held LOD is not over-cautious against it.
 TEST(ErrorBudget, WithinAQuarterOfTheOraclePrefix) {
