@@ -217,13 +217,14 @@ unsigned threads_for(std::size_t triangles, unsigned jobs) {
 
 // One mesh's chain. Ratios are of the mesh's own triangles; a triangle-count target is the asset's, shared
 // among its meshes by their triangle counts; error targets are relative to the asset's diagonal.
+// `expire` (testing aid, null normally): set just before the first simplify() call, so that only the engine's
+// own polling of `stop` (which reads it) can time the asset out.
 MeshChain build_chain(const Mesh& source, const AssetClass& cls, std::size_t asset_triangles, double asset_diagonal,
-                      unsigned jobs, const StopRequest& stop) {
+                      unsigned jobs, const StopRequest& stop, std::atomic<bool>* expire = nullptr) {
   MeshChain chain;
   const std::size_t source_triangles = source.triangle_count();
   for (std::size_t k = 0; k < cls.lods.size(); ++k) {
-    // The engines cannot be stopped inside simplify() yet: the deadline is checked between LODs.
-    if (stop.requested()) throw TimedOut{};
+    if (stop.requested()) throw TimedOut{};  // the engines poll it too; this spares a doomed LOD's setup
     LodSpec spec = cls.lods[k];
     const bool chained = spec.from == LodFrom::previous && k > 0;
     const Mesh& from = chained ? chain[k - 1].mesh : source;
@@ -242,8 +243,11 @@ MeshChain build_chain(const Mesh& source, const AssetClass& cls, std::size_t ass
                                                                   .accumulated_error_abs = spent});
     options.threads = threads_for(from.triangle_count(), jobs);
     if (chained) options.budget_reference = &source;
+    options.stop = stop;
+    if (expire != nullptr) expire->store(true);
     const auto t0 = Clock::now();
     SimplifyResult r = simplify(from, options);
+    if (r.stop_reason == StopReason::stopped) throw TimedOut{};
     MeshLod lod;
     lod.mesh = std::move(r.mesh);
     lod.mesh.name = source.name;
@@ -287,12 +291,16 @@ struct Job {
 
   // RunLimits::asset_timeout_s after the first stage started; none without a limit.
   std::optional<Clock::time_point> deadline;
+  // Set by RunOptions::expire_in_simplify (testing aid): stop_request() then reads as past the deadline.
+  std::atomic<bool> expired{false};
   bool past_deadline() const { return deadline && Clock::now() > *deadline; }
   void check_deadline() const {
     if (past_deadline()) throw TimedOut{};
   }
-  // The same test for the long loops inside a stage (eval's sampling).
-  StopRequest stop_request() const { return deadline ? StopRequest{.deadline = *deadline} : StopRequest{}; }
+  // The same test for the long loops inside a stage (the simplifier's rounds, eval's sampling).
+  StopRequest stop_request() const {
+    return {.deadline = deadline ? *deadline : StopRequest::Clock::time_point::max(), .flag = &expired};
+  }
 };
 using JobPtr = std::shared_ptr<Job>;
 
@@ -582,8 +590,9 @@ class Pipeline {
       Hasher key;
       key.bytes(mesh_content_hash(mesh)).bytes(job.cls->name).u64(job.triangles);
       key.u64(std::bit_cast<std::uint64_t>(job.diagonal));
+      std::atomic<bool>* expire = job.path == options_.expire_in_simplify ? &job.expired : nullptr;
       job.chains.push_back(chains_.get(key.hex(), [&] {
-        return build_chain(mesh, *job.cls, job.triangles, job.diagonal, jobs_, job.stop_request());
+        return build_chain(mesh, *job.cls, job.triangles, job.diagonal, jobs_, job.stop_request(), expire);
       }));
     }
   }

@@ -97,8 +97,15 @@ std::vector<std::uint32_t> repeated_faces(const Mesh& mesh) {
     return s;
   };
   auto material = [&](std::uint32_t f) { return f < mesh.face_material.size() ? mesh.face_material[f] : 0u; };
+  std::vector<std::uint32_t> corners;  // simple() on large faces: sorted, since pairwise tests are quadratic
   auto simple = [&](std::uint32_t f) {
     const std::uint32_t begin = mesh.face_offsets[f], k = mesh.face_size(f);
+    if (k > 32) {
+      corners.resize(k);
+      for (std::uint32_t i = 0; i < k; ++i) corners[i] = mesh.corner_vertex(begin + i);
+      std::sort(corners.begin(), corners.end());
+      return std::adjacent_find(corners.begin(), corners.end()) == corners.end();
+    }
     for (std::uint32_t i = 0; i < k; ++i) {
       for (std::uint32_t j = i + 1; j < k; ++j) {
         if (mesh.corner_vertex(begin + i) == mesh.corner_vertex(begin + j)) return false;

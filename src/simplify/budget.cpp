@@ -318,6 +318,12 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
                                  const CollapsePolicies& policies) {
   std::vector<CollapseRecord> log;
   SimplifyResult result = engine(triangles, options, policies, &log);
+  // Stopped: the engine's output as it is, unmeasured (each measurement is a pass over both surfaces).
+  if (result.stop_reason == StopReason::stopped) return result;
+  if (options.stop.requested()) {
+    result.stop_reason = StopReason::stopped;
+    return result;
+  }
   const auto t0 = std::chrono::steady_clock::now();
   const Mesh& reference_mesh = options.budget_reference != nullptr ? *options.budget_reference : triangles;
   const StopRule stop = stop_rule(options, triangles.triangle_count(), compute_bounds(triangles).diagonal());
@@ -352,10 +358,15 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
       }
       return true;
     };
+    bool stopped = false;
     for (int attempt = 0;; ++attempt) {
       const bool in_full = attempt >= kScreenedSearches;
       if (!at_lo) at_lo.emplace(triangles, replay_options, parallel);
       while (hi - lo > resolution) {
+        if (options.stop.requested()) {  // one poll per prefix measured
+          stopped = true;
+          break;
+        }
         const std::size_t mid = lo + (hi - lo) / 2;
         CollapseMesh trial = *at_lo;
         if (!replay(trial, lo, mid)) {
@@ -375,6 +386,10 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
           hi = mid;
         }
       }
+      if (stopped) {  // prefix lo, as far as the search got
+        if (!best) best = at_lo->output();
+        break;
+      }
       if (!best) {  // no prefix but the empty one held: the input as it is (within, unless a reference differs)
         best = at_lo->output();
         full = reference.measure(*best, budget);
@@ -382,6 +397,10 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
         break;
       }
       if (in_full) break;
+      if (options.stop.requested()) {  // before the full measurement of the prefix found
+        stopped = true;
+        break;
+      }
       full = reference.measure(*best, budget);
       ++check.prefixes_measured;
       if (full.within || lo == 0) break;
@@ -399,7 +418,12 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
     result.collapses = lo;
     result.qem_error_abs = at_lo->model_error(qem);
     result.qem_error_rel = at_lo->diagonal() > 0.0 ? result.qem_error_abs / at_lo->diagonal() : 0.0;
-    result.stop_reason = StopReason::error_budget;
+    result.stop_reason = stopped ? StopReason::stopped : StopReason::error_budget;
+  }
+  if (result.stop_reason == StopReason::stopped) {  // the longest prefix found to hold so far, unrefined
+    check.within = false;
+    check.ms = elapsed_ms(t0);
+    return result;
   }
   if (full.within) full.bound = reference.tighter_bound(result.mesh, budget, full.bound);
   check.within = full.within;

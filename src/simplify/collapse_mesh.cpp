@@ -40,6 +40,8 @@ constexpr double kDegenerateSine2 = 1e-12;
 // A list that outgrows its slot moves to the pool's end with this much extra room (in faces), so that a
 // vertex which keeps absorbing neighbours is not moved at every collapse.
 constexpr std::uint32_t kListSlack = 4;
+// check(): stars of two endpoints together larger than this test membership by stamps, not by scans.
+constexpr std::size_t kLargeStar = 64;
 
 }  // namespace
 
@@ -538,6 +540,28 @@ Check CollapseMesh::check(std::uint32_t u, std::uint32_t v, const Vec3d& x, Scra
 
   // Stars: s.na = [neighbour after a in each face | neighbour before a in each face], s.nb likewise.
   const std::uint32_t ma = size_[a], mb = size_[b];
+  if (std::size_t{ma} + mb > kLargeStar && (state_[a] & state_[b] & (kFan | kOpen)) == (kFan | kOpen)) {
+    // An interior edge between two border vertices is refused (boundary_pinch below); on large stars that is
+    // told from the smaller star alone, since the tests before it walk both (O(valence) for every spoke of a
+    // high-valence border vertex). Where one of them would refuse it too, it is counted as boundary_pinch.
+    const std::uint32_t small = ma <= mb ? a : b, other = small == a ? b : a;
+    const std::uint32_t* fl = star(small);
+    std::uint32_t edge_faces = 0, apex0 = kInvalidIndex;
+    bool same_apex = false;
+    for (std::uint32_t i = 0; i < size_[small]; ++i) {
+      const std::uint32_t* t = &tri_[3 * std::size_t{fl[i]}];
+      if (t[0] != other && t[1] != other && t[2] != other) continue;
+      const std::uint32_t apex = t[0] ^ t[1] ^ t[2] ^ small ^ other;
+      same_apex = edge_faces == 1 && apex == apex0;
+      apex0 = apex;
+      ++edge_faces;
+    }
+    s.work += size_[small];
+    if (edge_faces == 2) {
+      c.veto = same_apex ? Veto::link_condition : Veto::boundary_pinch;
+      return c;
+    }
+  }
   s.na.resize(2 * std::size_t{ma});
   s.nb.resize(2 * std::size_t{mb});
   std::uint32_t* const next_a = s.na.data();
@@ -546,6 +570,7 @@ Check CollapseMesh::check(std::uint32_t u, std::uint32_t v, const Vec3d& x, Scra
   std::uint32_t* const prev_b = next_b + mb;
   std::uint32_t apex[2] = {kInvalidIndex, kInvalidIndex};
   std::uint32_t k = 0;
+  s.work += 2 * (std::size_t{ma} + mb);  // the star scans here and the fold test below
   for (std::uint32_t w : {a, b}) {
     const std::uint32_t* fl = star(w);
     for (std::uint32_t i = 0; i < size_[w]; ++i) __builtin_prefetch(&tri_[3 * std::size_t{fl[i]}]);
@@ -606,12 +631,28 @@ Check CollapseMesh::check(std::uint32_t u, std::uint32_t v, const Vec3d& x, Scra
     // Both stars are single, consistently oriented fans whose kind is kept exact by commit(): the
     // neighbours are the "after" list plus, on a border vertex, the one "before" neighbour that is never
     // "after" (the fan's first spoke). Border spokes are that one and the "after" that is never "before".
-    auto contains = [](const std::uint32_t* l, std::uint32_t n, std::uint32_t x) {
+    // Membership: a scan of the list on ordinary stars; past kLargeStar, stamps on a per-thread vertex array,
+    // since a scan per neighbour is quadratic in the valence (a 20,000-spoke fan took minutes).
+    const bool large = std::size_t{ma} + mb > kLargeStar;
+    auto stamp = [&](const std::uint32_t* l, std::uint32_t n) {
+      if (s.mark.size() < vx_.size()) s.mark.resize(vx_.size(), 0);
+      if (++s.stamp == 0) {  // wrapped: clear once
+        std::fill(s.mark.begin(), s.mark.end(), 0);
+        s.stamp = 1;
+      }
+      for (std::uint32_t i = 0; i < n; ++i) s.mark[l[i]] = s.stamp;
+      s.work += n;
+    };
+    // `l` must be the list stamped last when the star is large.
+    auto contains = [&](const std::uint32_t* l, std::uint32_t n, std::uint32_t x) {
+      if (large) return s.mark[x] == s.stamp;
+      s.work += n;
       bool f = false;
       for (std::uint32_t i = 0; i < n; ++i) f |= l[i] == x;
       return f;
     };
     auto lone = [&](const std::uint32_t* from, const std::uint32_t* other, std::uint32_t m) {
+      if (large) stamp(other, m);
       for (std::uint32_t i = 0; i < m; ++i) {
         if (!contains(other, m, from[i])) return from[i];
       }
@@ -621,6 +662,7 @@ Check CollapseMesh::check(std::uint32_t u, std::uint32_t v, const Vec3d& x, Scra
     b_boundary = (state_[b] & kOpen) != 0;
     const std::uint32_t first_a = a_boundary ? lone(prev_a, next_a, ma) : kInvalidIndex;
     const std::uint32_t first_b = b_boundary ? lone(prev_b, next_b, mb) : kInvalidIndex;
+    if (large) stamp(next_b, mb);
     for (std::uint32_t i = 0; i < ma; ++i) {
       const std::uint32_t x = next_a[i];
       common += x != b && (contains(next_b, mb, x) || x == first_b);

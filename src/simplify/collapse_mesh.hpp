@@ -166,6 +166,9 @@ struct Check {
 // Per-thread scratch of check(), ring() and apply(); reused to avoid per-collapse allocations.
 struct Scratch {
   std::vector<std::uint32_t> na, nb;    // check(): stars of a and b (neighbour after / before in each face)
+  std::vector<std::uint32_t> mark;      // check() on large stars: mark[v] == stamp, v is in the list stamped
+  std::uint32_t stamp = 0;
+  std::uint64_t work = 0;               // check(): list entries visited and compared (tests count it)
   std::vector<std::uint32_t> ring;      // ring() output; apply(): the survivor's merged face list
   std::vector<std::uint64_t> spokes;    // setup: neighbour << 32 | face code
   std::vector<std::uint32_t> parent;    // setup: fan union-find

@@ -45,6 +45,11 @@ constexpr std::size_t kMaxBatch = 1024;
 // live edge count, drop them all at once (bounds memory; O(n) rebuild).
 constexpr std::size_t kPurgeFactor = 3;
 
+// select(): candidates whose endpoints' stars together exceed this many faces are not gathered ahead in
+// parallel; their conflict test looks at the endpoints first (a high-valence vertex is in every neighbouring
+// candidate's neighbourhood, and its star would be walked once per such candidate popped).
+constexpr std::size_t kLargeStars = 64;
+
 class GreedyEngine {
  public:
   GreedyEngine(const Mesh& triangles, const SimplifyOptions& options, const CollapsePolicies& policies,
@@ -62,6 +67,11 @@ class GreedyEngine {
   SimplifyResult run(std::chrono::steady_clock::time_point start) {
     result_.timings.setup_ms = elapsed_ms(start);
     auto t0 = std::chrono::steady_clock::now();
+    if (options_.stop.requested()) {  // before the first full pass over the edges
+      stopped_ = true;
+      finish_result(cm_, max_error_, stop_, over_budget_, result_, stopped_);
+      return std::move(result_);
+    }
     collect();
     result_.timings.initial_costs_ms = elapsed_ms(t0);
 
@@ -81,7 +91,7 @@ class GreedyEngine {
       purge();
     }
     result_.timings.collapse_ms = elapsed_ms(t0);
-    finish_result(cm_, max_error_, stop_, over_budget_, result_);
+    finish_result(cm_, max_error_, stop_, over_budget_, result_, stopped_);
     return std::move(result_);
   }
 
@@ -91,9 +101,11 @@ class GreedyEngine {
     return make_entry(cost_bits(cm_.evaluate(u, v).cost), u, v, cm_.version(u) + cm_.version(v));
   }
 
-  // Whether to stop before the next round: the target, or the caller's stop policy.
-  bool stop() const {
+  // Whether to stop before the next round: the target, a stop request (one poll a round: a round is a batch of
+  // collapses), or the caller's stop policy.
+  bool stop() {
     if (stop_.reached(cm_.alive_faces())) return true;
+    if (options_.stop.requested()) return stopped_ = true;
     return policies_.stop && policies_.stop({.triangles = cm_.alive_faces(),
                                              .collapses = result_.collapses,
                                              .rounds = result_.rounds,
@@ -158,15 +170,22 @@ class GreedyEngine {
       if (window_.empty()) break;
       const std::size_t nwin = window_.size();
       window_first_.resize(nwin + 1);
+      window_large_.assign(nwin, 0);
       std::size_t span = 0;
       for (std::size_t i = 0; i < nwin; ++i) {
         window_first_[i] = span;
-        span += 3 * (std::size_t{cm_.star_size(window_[i].u())} + cm_.star_size(window_[i].v));
+        const std::size_t stars = std::size_t{cm_.star_size(window_[i].u())} + cm_.star_size(window_[i].v);
+        if (stars > kLargeStars) {
+          window_large_[i] = 1;
+        } else {
+          span += 3 * stars;
+        }
       }
       window_first_[nwin] = span;
       if (closed_ring_.size() < span) closed_ring_.resize(span);
       parallel_.for_ranges(nwin, 32, [&](std::size_t b, std::size_t e) {
         for (std::size_t i = b; i < e; ++i) {
+          if (window_large_[i]) continue;
           if (i + 1 < e) {
             cm_.prefetch_star(window_[i + 1].u());
             cm_.prefetch_star(window_[i + 1].v);
@@ -180,17 +199,36 @@ class GreedyEngine {
         const std::uint32_t* ring_begin = closed_ring_.data() + window_first_[i];
         const std::uint32_t* ring_end = closed_ring_.data() + window_first_[i + 1];
         bool conflict = false;
-        for (const std::uint32_t* w = ring_begin; w != ring_end; ++w) conflict |= mark_[*w] == stamp_;
+        if (window_large_[i]) {
+          conflict = large_conflict(window_[i].u(), window_[i].v);
+        } else {
+          for (const std::uint32_t* w = ring_begin; w != ring_end; ++w) conflict |= mark_[*w] == stamp_;
+        }
         if (conflict) {
           deferred_.push_back(window_[i]);
           full = deferred_.size() >= 2 * batch;
           continue;
         }
-        for (const std::uint32_t* w = ring_begin; w != ring_end; ++w) mark_[*w] = stamp_;
+        if (window_large_[i]) {
+          cm_.for_each_closed_ring_vertex(window_[i].u(), window_[i].v, [&](std::uint32_t w) { mark_[w] = stamp_; });
+        } else {
+          for (const std::uint32_t* w = ring_begin; w != ring_end; ++w) mark_[*w] = stamp_;
+        }
         selected_.push_back(window_[i]);
       }
       for (; i < nwin; ++i) queue_.push(window_[i]);  // popped beyond the selection: not looked at
     }
+  }
+
+  // Whether the closed neighbourhood of (u, v), a large one, touches a claimed vertex: the endpoints first (each
+  // lies on its own faces), so that a conflict at a high-valence vertex costs O(1), not a walk of its star.
+  bool large_conflict(std::uint32_t u, std::uint32_t v) const {
+    for (std::uint32_t w : {u, v}) {
+      if (cm_.star_size(w) > 0 && mark_[w] == stamp_) return true;
+    }
+    bool conflict = false;
+    cm_.for_each_closed_ring_vertex(u, v, [&](std::uint32_t w) { conflict |= mark_[w] == stamp_; });
+    return conflict;
   }
 
   // The neighbourhoods are disjoint, so checking before any commit equals checking just before each commit.
@@ -345,6 +383,7 @@ class GreedyEngine {
   ParkingLot parked_;
   tbb::enumerable_thread_specific<Scratch> scratch_;
   bool over_budget_ = false;
+  bool stopped_ = false;    // options_.stop was requested
   double max_error_ = 0.0;  // largest committed Evaluation::error
 
   // Per-round buffers, kept across rounds to avoid reallocation.
@@ -352,6 +391,7 @@ class GreedyEngine {
   std::uint32_t stamp_ = 0;
   std::vector<QueueEntry> selected_, deferred_, window_;
   std::vector<std::size_t> window_first_;
+  std::vector<char> window_large_;  // closed neighbourhood over kLargeStars: walked in the sequential pass, when needed
   std::vector<std::uint32_t> closed_ring_;
   std::vector<Evaluation> evals_;
   std::vector<Check> checks_;
@@ -379,13 +419,14 @@ double normalised_budget_squared(const StopRule& stop, double scale) {
 }
 
 void finish_result(const CollapseMesh& cm, double max_error, const StopRule& stop, bool over_budget,
-                   SimplifyResult& result) {
+                   SimplifyResult& result, bool stopped) {
   const auto t0 = std::chrono::steady_clock::now();
   result.mesh = cm.output();
   result.triangles_after = cm.alive_faces();
   result.qem_error_abs = cm.model_error(max_error);
   result.qem_error_rel = cm.diagonal() > 0.0 ? result.qem_error_abs / cm.diagonal() : 0.0;
   result.stop_reason = stop.reached(cm.alive_faces()) ? StopReason::target_reached
+                       : stopped                       ? StopReason::stopped
                        : over_budget                   ? StopReason::error_budget
                                                        : StopReason::no_valid_collapse;
   result.timings.output_ms = elapsed_ms(t0);

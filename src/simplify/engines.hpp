@@ -45,9 +45,10 @@ StopRule stop_rule(const SimplifyOptions& options, std::size_t input_triangles, 
 double normalised_budget_squared(const StopRule& stop, double scale);
 
 // The end of an engine run: the output mesh and its triangle count, the error bound (from the largest committed
-// error, normalised and squared), why it stopped, and the output time.
+// error, normalised and squared), why it stopped (`stopped`: SimplifyOptions::stop was requested), and the
+// output time.
 void finish_result(const CollapseMesh& cm, double max_error, const StopRule& stop, bool over_budget,
-                   SimplifyResult& result);
+                   SimplifyResult& result, bool stopped = false);
 
 // Recomputes the tangents of `mesh` from its normals and UV set 0; no-op without them.
 void recompute_tangents(Mesh& mesh);

@@ -97,7 +97,12 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
                                            .rounds = result.rounds,
                                            .max_error = cm.model_error(max_error)});
   };
+  bool stopped = false;  // options.stop was requested (polled once a round)
   for (std::uint64_t round = 0; !stop.reached(cm.alive_faces()) && !policy_stop(); ++round) {
+    if (options.stop.requested()) {
+      stopped = true;
+      break;
+    }
     if (faces.size() > 2 * cm.alive_faces() + 64) rebuild_faces();
     const std::size_t remaining = cm.alive_faces() - target;
     const std::size_t steps =
@@ -191,7 +196,7 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
   }
   result.timings.collapse_ms = elapsed_ms(t0);
 
-  finish_result(cm, max_error, stop, over_budget, result);
+  finish_result(cm, max_error, stop, over_budget, result, stopped);
   return result;
 }
 

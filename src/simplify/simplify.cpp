@@ -89,6 +89,7 @@ const char* stop_reason_name(StopReason r) {
     case StopReason::target_reached: return "target_reached";
     case StopReason::error_budget: return "error_budget";
     case StopReason::no_valid_collapse: return "no_valid_collapse";
+    case StopReason::stopped: return "stopped";
   }
   return "unknown";
 }
@@ -131,6 +132,21 @@ std::vector<std::uint32_t> locked_vertices_in(const Mesh& output, const Mesh& in
     if (locked_positions.count(output.positions[v].v)) out.push_back(v);
   }
   return out;
+}
+
+// The quad engine's output as far as it got when SimplifyOptions::stop was requested: no hand-over, no budget.
+SimplifyResult stopped_quad_result(const Mesh& mesh, quad::PolychordResult&& q, double quad_ms) {
+  SimplifyResult r;
+  r.mesh = std::move(q.mesh);
+  r.triangles_before = mesh.triangle_count();
+  r.triangles_after = q.triangles_after;
+  r.qem_error_abs = q.error_bound_abs;
+  r.collapses = q.collapses;
+  r.stop_reason = StopReason::stopped;
+  r.quads_before = q.quads_before;
+  r.quads_after = count_face_kinds(r.mesh).quads;
+  r.timings.collapse_ms = quad_ms;
+  return r;
 }
 
 // How a polychord LOD was made: by the quad engine alone, handed over to the triangle engine from the quad
@@ -186,8 +202,13 @@ SimplifyResult hold_polychord_budget(const Mesh& mesh, const SimplifyOptions& op
   const std::size_t resolution = std::max<std::size_t>(1, (before - fails) / kPolychordResolutionDivisor);
   std::optional<SimplifyResult> best;
   while (holds - fails > resolution) {
+    if (options.stop.requested()) {  // one poll per target measured
+      if (best) best->stop_reason = StopReason::stopped;
+      return best ? std::move(*best) : stopped_quad_result(mesh, quad::PolychordResult(q), 0.0);
+    }
     const std::size_t mid = fails + (holds - fails) / 2;
     quad::PolychordResult trial = quad::simplify_polychord(mesh, quad_options(mid));
+    if (trial.stopped) return stopped_quad_result(mesh, std::move(trial), 0.0);
     const BudgetCheck c = collapse::measure_budget(trial.mesh, reference, stop.max_error, options.threads);
     ++measured;
     if (c.within) {
@@ -230,11 +251,13 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options, c
              .normal_weight = options.attribute_weights.normal,
              .uv_weight = options.attribute_weights.uv,
              .color_weight = options.attribute_weights.color,
-             .optimal_attributes = options.attribute_placement == AttributePlacement::optimal};
+             .optimal_attributes = options.attribute_placement == AttributePlacement::optimal,
+             .stop = options.stop};
   };
   quad::PolychordResult q = quad::simplify_polychord(mesh, quad_options(target));
   const double quad_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   SimplifyResult r;
+  if (q.stopped) return stopped_quad_result(mesh, std::move(q), quad_ms);
   PolychordPath path = PolychordPath::quad_only;
   if (q.triangles_after > target) {
     // Where there are too few chords (few quads, or triangles between almost every pair of them), the quad
@@ -274,7 +297,7 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options, c
   }
   const double diagonal = compute_bounds(mesh).diagonal();
   r.qem_error_rel = diagonal > 0.0 ? r.qem_error_abs / diagonal : 0.0;
-  if (verifies_budget(options)) {
+  if (verifies_budget(options) && r.stop_reason != StopReason::stopped) {
     const Mesh& reference = options.budget_reference != nullptr ? *options.budget_reference : mesh;
     BudgetCheck check = collapse::measure_budget(r.mesh, reference, stop.max_error, options.threads);
     std::size_t measured = check.prefixes_measured;

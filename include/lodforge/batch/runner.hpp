@@ -21,9 +21,10 @@
 //   - Timeouts: with RunLimits::asset_timeout_s (config `defaults.asset_timeout_s`, `run --asset-timeout`) an
 //     asset still running that long after its first stage started fails with "timed out in the <stage> stage
 //     (asset timeout N s)", stage one of fingerprint, load, analyse, simplify, post-process, evaluate, write.
-//     The deadline is checked at every stage boundary, between LODs, inside eval's sampling loops and before
-//     the outputs are published, so nothing of a timed-out asset is written; a simplify() call in progress is
-//     not interrupted (the engines take no stop hook yet), so an asset can overrun by one LOD's simplification.
+//     The deadline is checked at every stage boundary, between LODs, inside the simplifier (every engine polls
+//     it between rounds of collapses, and the error budget's back-off between measurements), inside eval's
+//     sampling loops and before the outputs are published, so nothing of a timed-out asset is written and an
+//     asset overruns its timeout by at most one round of work.
 //   - Incremental: see cache.hpp. Outputs are staged and renamed into place, then the cache entry is written.
 //   - Duplicate meshes (same content and class) are simplified once per run; the copies reuse the result.
 #pragma once
@@ -96,6 +97,9 @@ struct RunOptions {
   std::size_t stop_after = 0;
   // Testing aid: called as an asset enters a stage ("load", "simplify", "evaluate", ...), on the stage's thread.
   std::function<void(const std::string& path, const char* stage)> on_stage_start{};
+  // Testing aid: this asset (its '/'-separated relative path) reads as past its deadline from just before its
+  // first simplify() call, after every check outside the engines: only their own polling can time it out.
+  std::string expire_in_simplify{};
 };
 
 // Seconds spent per stage, summed over assets (cache hits count only their lookup).

@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "lodforge/core/mesh.hpp"
+#include "lodforge/core/stop.hpp"
 #include "lodforge/quad/polychord.hpp"
 
 namespace lodforge::quad {
@@ -107,6 +108,9 @@ struct PolychordOptions {
   // segments between the merged wedges' UVs, snapped to the nearest of them at a seam vertex). False: the
   // survivor's values, unchanged (all LODs can share one vertex buffer).
   bool optimal_attributes = true;
+  // Polled every few hundred steps of the collapse loop; once requested, the mesh as far as it got is returned
+  // (without the surface fit) with PolychordResult::stopped set.
+  StopRequest stop{};
 };
 
 struct PolychordResult {
@@ -121,6 +125,7 @@ struct PolychordResult {
   std::size_t over_budget = 0; // runs and diagonal collapses left out for exceeding the error budget
   std::size_t recovered_quads = 0;  // quads made by quad recovery of triangle input
   std::size_t paired_triangles = 0; // quads made at the end from adjacent triangles the runs left (see .cpp)
+  bool stopped = false;  // PolychordOptions::stop was requested before the target was reached
 };
 
 // Whether rungs [first, last] of `chord` may collapse as one run: none of them shares a vertex with another

@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "lodforge/core/mesh.hpp"
+#include "lodforge/core/stop.hpp"
 #include "lodforge/simplify/policies.hpp"
 
 namespace lodforge {
@@ -116,6 +117,11 @@ struct SimplifyOptions {
   bool verify_budget = true;
   const Mesh* budget_reference = nullptr;
 
+  // A deadline or cancel flag (core/stop.hpp) polled between rounds of collapses (every engine) and between
+  // the budget's measurements; once requested, simplify() returns the mesh as far as it got with stop_reason
+  // stopped (no budget check or back-off is finished). The default never stops and costs nothing.
+  StopRequest stop{};
+
   // Every problem at once, one line each; empty = valid.
   std::vector<std::string> validate() const;
 };
@@ -124,7 +130,8 @@ struct SimplifyOptions {
 // or one component of it ("_PAINT.x"), or a colour channel ("COLOR_0.r"). The grammar of configs/schema.json.
 bool is_priority_channel(std::string_view channel);
 
-enum class StopReason { target_reached, error_budget, no_valid_collapse };
+// stopped: SimplifyOptions::stop was requested before the target was reached (the output is incomplete).
+enum class StopReason { target_reached, error_budget, no_valid_collapse, stopped };
 const char* stop_reason_name(StopReason r);
 
 // Why a candidate collapse was refused. The first ten are the triangle engines' check-time rules

@@ -614,6 +614,35 @@ TEST(BatchRunner, AssetTimeoutFailsOnlyTheSlowAssetWithTheStageItWasIn) {
   }
 }
 
+// An asset that reads as past its deadline only once its first simplify() call has started (testing aid: no
+// clock involved) is stopped by the engine itself and fails naming the simplify stage; the others complete.
+TEST(BatchRunner, AssetTimeoutInterruptsSimplify) {
+  const fs::path dir = testing::temp_dir("batch_runner_timeout_simplify");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 8);
+  const std::string slow = "props/prop_0.obj";
+  BatchConfig limited = config();
+  limited.limits.asset_timeout_s = 3600.0;
+  RunOptions options{.input_dir = lib.root, .output_dir = dir / "out", .jobs = 2};
+  options.expire_in_simplify = slow;
+  const RunResult r = run_batch(limited, options);
+  EXPECT_EQ(r.succeeded, lib.files.size() - 1);
+  ASSERT_EQ(r.failures.size(), 1u);
+  const std::string reason = "timed out in the simplify stage (asset timeout 3600 s)";
+  EXPECT_EQ(r.failures[0], slow + ": " + reason);
+  const Json& record = record_of(r.report, slow);
+  EXPECT_EQ(record["status"], "failed");
+  EXPECT_EQ(record["error"], reason);
+  EXPECT_TRUE(check_report(r.report).empty());
+  for (const auto& [file, bytes] : testlib::read_outputs(dir / "out")) {
+    EXPECT_NE(file.rfind("props/prop_0", 0), 0u) << file << ": nothing of the timed-out asset";
+  }
+  EXPECT_TRUE(testlib::leftovers(dir / "out").empty());
+  // Not cached: the next run builds it.
+  const RunResult again = run(lib.root, dir / "out", 2);
+  EXPECT_EQ(again.succeeded, lib.files.size());
+  EXPECT_EQ(again.cache_hits, lib.files.size() - 1);
+}
+
 TEST(BatchRunner, TightMemoryLimitStillFinishes) {
   // A budget below one asset's footprint admits one asset at a time, and everything still runs.
   const fs::path dir = testing::temp_dir("batch_runner_memory");
