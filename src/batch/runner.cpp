@@ -1,4 +1,4 @@
-// The batch runner: a oneTBB flow graph over the assets of a library (DESIGN.md "Data flow", issue 5).
+// The batch runner: a oneTBB flow graph over the assets of a library.
 //
 //   admission ─► fingerprint ─► load ─► analyse ─► lods ─► post_process ─► measure ─► write ─► report (serial)
 //       ▲                                                                                        │
