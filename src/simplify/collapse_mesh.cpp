@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <numbers>
 #include <optional>
@@ -21,6 +22,7 @@
 
 #include "engines.hpp"
 #include "lodforge/core/mesh.hpp"
+#include "lodforge/eval/bvh.hpp"
 
 namespace lodforge::collapse {
 namespace {
@@ -437,6 +439,11 @@ void CollapseMesh::setup(Parallel& parallel) {
     }
   });
   priority_.swap(priority);
+  // With an error budget, each vertex tracks the input point it absorbed that lies farthest from its fan.
+  if (options_.max_error_abs >= 0.0 || options_.max_error_rel >= 0.0) {
+    far_.resize(nv);
+    for (std::size_t v = 0; v < nv; ++v) far_[v] = vx_[v].pos;
+  }
 }
 
 // ---- CollapseMesh: evaluation and checks ----------------------------------------------------------------------
@@ -492,9 +499,43 @@ Evaluation CollapseMesh::evaluate(std::uint32_t u, std::uint32_t v, bool with_co
     ev.error = surface.evaluate(ev.position) / (surface.weight + weight_floor_);
     ev.cost = q.evaluate(ev.position);
   }
+  if (!far_.empty()) {
+    // A collapse that leaves an absorbed input point far from the new fan (a thin part shortened: the quadric
+    // sees no error in moving along it) costs that distance: such parts go last, not first.
+    const std::array<double, 2> d2 = far_distances(u, v, ev.position);
+    const double reach = std::max(d2[0], d2[1]);
+    if (reach > ev.error) {
+      ev.cost += (surface.weight + weight_floor_) * (reach - ev.error);
+      ev.error = reach;
+    }
+  }
   if (skin_cost_scale_ > 0.0 && with_cost) ev.cost += skin_cost(u, v);
   if (policies_ != nullptr && policies_->cost && with_cost) ev.cost = std::max(0.0, policies_->cost(candidate(u, v, ev)));
   return ev;
+}
+
+std::array<double, 2> CollapseMesh::far_distances(std::uint32_t u, std::uint32_t v, const Vec3d& x) const {
+  std::array<double, 2> best = {std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity()};
+  const Vec3d points[2] = {far_[u], far_[v]};
+  for (const std::uint32_t w : {u, v}) {
+    const std::uint32_t* fl = star(w);
+    for (std::uint32_t i = 0; i < size_[w]; ++i) {
+      const std::uint32_t* t = &tri_[3 * std::size_t{fl[i]}];
+      const bool has_u = t[0] == u || t[1] == u || t[2] == u, has_v = t[0] == v || t[1] == v || t[2] == v;
+      if (has_u && has_v) continue;  // collapses away
+      if (w == v && has_u) continue;  // seen from u
+      Vec3d c[3];
+      for (int k = 0; k < 3; ++k) c[k] = t[k] == u || t[k] == v ? x : vx_[t[k]].pos;
+      for (int j = 0; j < 2; ++j) {
+        const Vec3d q = closest_point_on_triangle(points[j], c[0], c[1], c[2]).point;
+        best[j] = std::min(best[j], dot(points[j] - q, points[j] - q));
+      }
+    }
+  }
+  for (double& b : best) {
+    if (!std::isfinite(b)) b = 0.0;  // no face left around the pair
+  }
+  return best;
 }
 
 CollapseCandidate CollapseMesh::candidate(std::uint32_t u, std::uint32_t v, const Evaluation& ev) const {
@@ -858,8 +899,14 @@ void CollapseMesh::apply(const Check& c, const Vec3d& x, Scratch& s) {
 }
 
 void CollapseMesh::commit(Check c, const Vec3d& x, Scratch& s) {
+  Vec3d far{};
+  if (!far_.empty()) {
+    const std::array<double, 2> d2 = far_distances(c.victim, c.survivor, x);
+    far = d2[0] >= d2[1] ? far_[c.victim] : far_[c.survivor];
+  }
   reserve(c);
   apply(c, x, s);
+  if (!far_.empty()) far_[c.survivor] = far;
 }
 
 void CollapseMesh::ring(std::uint32_t v, std::vector<std::uint32_t>& out) const {

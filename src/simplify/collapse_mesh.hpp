@@ -19,6 +19,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -215,6 +216,8 @@ class CollapseMesh {
   void reserve(Check& c);
   void apply(const Check& c, const Vec3d& x, Scratch& scratch);
   void commit(Check c, const Vec3d& x, Scratch& scratch);
+  // Squared distances of the input points u and v track (far_) to the fan that collapsing (u, v) to x leaves.
+  std::array<double, 2> far_distances(std::uint32_t u, std::uint32_t v, const Vec3d& x) const;
 
   // Hints that v's record will be read soon. The greedy order jumps around the mesh, so most records are
   // cold; asking for a whole ring at once lets the memory system fetch them in parallel.
@@ -305,6 +308,9 @@ class CollapseMesh {
   };
   static_assert(sizeof(Vertex) == 128);
   std::vector<Vertex> vx_;
+  // With an error budget: per vertex, the input point it absorbed that is farthest from its fan (normalised
+  // coordinates; a proxy for the input → LOD distance, which the quadric does not see). Empty otherwise.
+  std::vector<Vec3d> far_;
   // Small per-vertex arrays read by staleness tests and edge rules: dense, so they stay in cache.
   std::vector<std::uint32_t> version_;
   std::vector<VertexKind> kind_;
