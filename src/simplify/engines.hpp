@@ -19,6 +19,7 @@ struct CollapseRecord {
   std::uint32_t u = 0, v = 0;  // the candidate edge, u < v
   Vec3d position{};            // normalised (CollapseMesh) coordinates
   double error = 0;            // Evaluation::error
+  SeamStage stage = SeamStage::strict;  // the seam stage it was made in (replay relaxes the mesh as far first)
 };
 
 // Engines. `triangles` holds triangles only; the result's triangles_before is filled in by simplify().
