@@ -270,6 +270,9 @@ void CollapseMesh::setup(Parallel& parallel) {
     }
   });
 
+  // Seam constraint planes per vertex as well, where seams may relax and any vertex has several wedges.
+  if (last_stage_ != SeamStage::strict && src_.wedge_count() > nv) seam_q_.assign(nv, Quadric{});
+
   // Each vertex's surface area (its quadric's weight), densely: summed in vertex order below.
   std::vector<double> vertex_area(nv, 0.0);
   tbb::enumerable_thread_specific<Scratch> scratch;
@@ -370,10 +373,14 @@ void CollapseMesh::setup(Parallel& parallel) {
             const bool seam_edge = key(f0 + corner_of(&tri_[f0], v)) != key(f1 + corner_of(&tri_[f1], v)) ||
                                    key(f0 + corner_of(&tri_[f0], x)) != key(f1 + corner_of(&tri_[f1], x));
             if (seam_edge) {
+              // Within one material the planes are also kept apart, for relax() to take them out again.
+              const bool apart = !seam_q_.empty() && face_material(fl[code0 / 2]) == face_material(fl[code1 / 2]);
               for (const std::size_t f3 : {f0, f1}) {
                 const std::uint32_t* t = &tri_[f3];
                 const Vec3d n = cross(vx_[t[1]].pos - vx_[t[0]].pos, vx_[t[2]].pos - vx_[t[0]].pos);
-                q += Quadric::from_boundary_edge(vx_[v].pos, vx_[x].pos, n, options_.border_weight);
+                const Quadric plane = Quadric::from_boundary_edge(vx_[v].pos, vx_[x].pos, n, options_.border_weight);
+                q += plane;
+                if (apart) seam_q_[v] += plane;
               }
             }
           }
@@ -440,6 +447,7 @@ void CollapseMesh::setup(Parallel& parallel) {
       if (v < priority.size() && priority[v] != 1.0f) {
         const double pi = static_cast<double>(priority[v]);
         vx_[v].quadric *= pi * pi;
+        if (!seam_q_.empty()) seam_q_[v] *= pi * pi;
       }
     }
   });
@@ -821,6 +829,7 @@ void CollapseMesh::apply(const Check& c, const Vec3d& x, Scratch& s) {
   size_[a] = 0;
 
   vx_[b].quadric += vx_[a].quadric;
+  if (!seam_q_.empty()) seam_q_[b] += seam_q_[a];
   vx_[b].anchors += vx_[a].anchors;
   vx_[b].anchor_sum = vx_[b].anchor_sum + vx_[a].anchor_sum;
   // Keep the kind of a free survivor exact (ring() and check() rely on it): it is on the boundary when

@@ -369,6 +369,9 @@ class CollapseMesh {
   std::vector<std::size_t> material_faces_;    // alive faces per material (from SeamStage::corners on)
   std::vector<std::uint32_t> wedge_vertex_;    // each wedge's vertex now (SeamStage::uv on; empty before)
   bool reattached_ = false;                    // a wedge changed vertex (the output uses wedge_vertex_)
+  // The seam constraint planes within each vertex's quadric that lie within one material (empty when seams
+  // never relax or no vertex has two wedges): relax() takes them out of the quadrics at its first stage.
+  std::vector<Quadric> seam_q_;
 };
 
 }  // namespace lodforge::collapse

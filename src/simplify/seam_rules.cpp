@@ -451,6 +451,18 @@ bool CollapseMesh::relax() {
     }
   }
   if (stage_ == SeamStage::uv && wedge_vertex_.empty()) wedge_vertex_ = src_.wedge_vertex;
+  if (!seam_q_.empty()) {
+    // The planes hold seams to their outline, which the stages give up: left in, they made the order prefer
+    // collapses that keep seam lines over those that keep the surface (kenney_cakeBirthday at 50%: a mean
+    // distance of 1.7% of the diagonal at 768 triangles, where positions alone give 0.0002%).
+    for (std::uint32_t v = 0; v < nv; ++v) {
+      if (!alive(v)) continue;
+      Quadric minus = seam_q_[v];
+      minus *= -1.0;
+      vx_[v].quadric += minus;
+    }
+    std::vector<Quadric>().swap(seam_q_);
+  }
   if (stage_ != SeamStage::uv) {  // uv keeps the keys of normals; it changes the rules (rule(), reattach_ok())
     // Class representative of every wedge in use, per vertex, lowest wedge id first (as setup_keys()).
     const Mesh& m = src_;
