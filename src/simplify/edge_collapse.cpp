@@ -91,7 +91,10 @@ class GreedyEngine {
       collect();
     }
     result_.timings.collapse_ms = elapsed_ms(t0);
-    if (!stop_.reached(cm_.alive_faces())) result_.floors = diagnose_floors();
+    // An error budget stops most of its runs short of their (nominal) triangle target: no pass over the edges.
+    if (!stop_.reached(cm_.alive_faces())) {
+      result_.floors = over_budget_ ? std::vector<std::string>{"error_budget"} : diagnose_floors();
+    }
     finish_result(cm_, max_error_, stop_, over_budget_, result_);
     return std::move(result_);
   }
@@ -139,7 +142,7 @@ class GreedyEngine {
                                                          : "topology"];
             break;
           case Veto::skin: ++count["skin"]; break;
-          case Veto::uv_flip: ++count["seams_kept"]; break;
+          case Veto::uv_flip: ++count["uv_checks"]; break;
           default: ++count["topology"]; break;
         }
       }

@@ -250,8 +250,9 @@ struct SimplifyResult {
   // When the target was not reached: what held the rest, most refused candidates first, each one of
   // "locked" (locked and painted-locked vertices), "non_manifold" (vertices locked on non-manifold or
   // inconsistently oriented edges), "skin" (the skinning rule), "material_slot" (a material's last triangle),
-  // "materials_kept" (material boundaries, seams relax), "seams_kept" (seams = keep), "topology" (the link
-  // condition, folds: closed parts at their smallest), "error_budget". Empty when the target was reached.
+  // "materials_kept" (material boundaries, seams relax), "seams_kept" (seams = keep), "uv_checks" (a UV
+  // triangle would flip or become a sliver), "topology" (the link condition, folds: closed parts at their
+  // smallest), "error_budget". Empty when the target was reached.
   std::vector<std::string> floors;
 };
 
