@@ -93,7 +93,7 @@ class GreedyEngine {
     result_.timings.collapse_ms = elapsed_ms(t0);
     // An error budget stops most of its runs short of their (nominal) triangle target: no pass over the edges.
     if (!stop_.reached(cm_.alive_faces())) {
-      result_.floors = over_budget_ ? std::vector<std::string>{"error_budget"} : diagnose_floors();
+      result_.floors = over_budget_ ? std::vector<std::string>{"error_budget"} : diagnose_floors(cm_, budget2_);
     }
     finish_result(cm_, max_error_, stop_, over_budget_, result_);
     return std::move(result_);
@@ -112,52 +112,6 @@ class GreedyEngine {
                                              .collapses = result_.collapses,
                                              .rounds = result_.rounds,
                                              .max_error = cm_.model_error(max_error_)});
-  }
-
-  // What holds the mesh above its target: every edge left, sorted by why it may not collapse.
-  std::vector<std::string> diagnose_floors() {
-    std::map<std::string, std::size_t> count;
-    Scratch& s = scratch_.local();
-    std::vector<std::uint32_t> ring;
-    for (std::uint32_t u = 0; u < cm_.vertex_count(); ++u) {
-      if (!cm_.alive(u) || cm_.star_size(u) == 0) continue;
-      cm_.ring(u, ring);
-      for (std::uint32_t w : ring) {
-        if (w <= u) continue;
-        if (cm_.rule(u, w) == EdgeRule::forbidden) {
-          ++count[cm_.forbidden_reason(u, w)];
-          continue;
-        }
-        const Evaluation ev = cm_.evaluate(u, w, /*with_cost=*/false);
-        if (ev.error > budget2_) {
-          ++count["error_budget"];
-          continue;
-        }
-        const Check c = cm_.check(u, w, ev.position, s);
-        switch (c.veto) {
-          case Veto::none: ++count[cm_.removes_last_material(c) ? "material_slot" : "topology"]; break;
-          case Veto::seam:
-            ++count[cm_.stage() == SeamStage::strict ? "seams_kept"
-                    : cm_.stage() < SeamStage::materials ? "materials_kept"
-                                                         : "topology"];
-            break;
-          case Veto::skin: ++count["skin"]; break;
-          case Veto::uv_flip: ++count["uv_checks"]; break;
-          default: ++count["topology"]; break;
-        }
-      }
-    }
-    std::vector<std::pair<std::size_t, std::string>> order;
-    for (const auto& [name, n] : count) order.emplace_back(n, name);
-    // The named floors first, most refusals first; topology (link condition, folds) last: every mesh has some.
-    std::stable_sort(order.begin(), order.end(), [](const auto& x, const auto& y) {
-      const bool tx = x.second == "topology", ty = y.second == "topology";
-      return tx != ty ? ty : x.first > y.first;
-    });
-    std::vector<std::string> out;
-    for (const auto& o : order) out.push_back(o.second);
-    if (out.empty()) out.push_back("topology");  // no edge left at all
-    return out;
   }
 
   // Every allowed edge once (u < v), evaluated in parallel over fixed chunks of vertices (not per thread) and
@@ -429,6 +383,52 @@ class GreedyEngine {
 }  // namespace
 
 // ---- shared by the engines -------------------------------------------------------------------------------------
+
+std::vector<std::string> diagnose_floors(const CollapseMesh& cm, double budget2) {
+  std::map<std::string, std::size_t> count;
+  Scratch s;
+  std::vector<std::uint32_t> ring;
+  for (std::uint32_t u = 0; u < cm.vertex_count(); ++u) {
+    if (!cm.alive(u) || cm.star_size(u) == 0) continue;
+    cm.ring(u, ring);
+    for (std::uint32_t w : ring) {
+      if (w <= u) continue;
+      if (cm.rule(u, w) == EdgeRule::forbidden) {
+        ++count[cm.forbidden_reason(u, w)];
+        continue;
+      }
+      const Evaluation ev = cm.evaluate(u, w, /*with_cost=*/false);
+      if (ev.error > budget2) {
+        ++count["error_budget"];
+        continue;
+      }
+      const Check c = cm.check(u, w, ev.position, s);
+      switch (c.veto) {
+        case Veto::none: ++count[cm.removes_last_material(c) ? "material_slot" : "topology"]; break;
+        case Veto::seam:
+          ++count[cm.stage() == SeamStage::strict ? "seams_kept"
+                  : cm.stage() < SeamStage::materials ? "materials_kept"
+                                                       : "topology"];
+          break;
+        case Veto::skin: ++count["skin"]; break;
+        case Veto::uv_flip: ++count["uv_checks"]; break;
+        default: ++count["topology"]; break;
+      }
+    }
+  }
+  std::vector<std::pair<std::size_t, std::string>> order;
+  for (const auto& [name, n] : count) order.emplace_back(n, name);
+  // The named floors first, most refusals first; topology (link condition, folds) last: every mesh has some.
+  std::stable_sort(order.begin(), order.end(), [](const auto& x, const auto& y) {
+    const bool tx = x.second == "topology", ty = y.second == "topology";
+    return tx != ty ? ty : x.first > y.first;
+  });
+  std::vector<std::string> out;
+  for (const auto& o : order) out.push_back(o.second);
+  if (out.empty()) out.push_back("topology");  // no edge left at all
+  return out;
+}
+
 
 StopRule stop_rule(const SimplifyOptions& o, std::size_t input_triangles, double diagonal) {
   return StopRule::make(input_triangles,

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstddef>
+#include <string>
 #include <vector>
 
 #include "collapse_mesh.hpp"
@@ -49,6 +50,10 @@ double normalised_budget_squared(const StopRule& stop, double scale);
 // error, normalised and squared), why it stopped, and the output time.
 void finish_result(const CollapseMesh& cm, double max_error, const StopRule& stop, bool over_budget,
                    SimplifyResult& result);
+
+// What holds a mesh above its target (SimplifyResult::floors): every edge left, sorted by why it may not
+// collapse; `budget2` as normalised_budget_squared().
+std::vector<std::string> diagnose_floors(const CollapseMesh& cm, double budget2);
 
 // Recomputes the tangents of `mesh` from its normals and UV set 0; no-op without them.
 void recompute_tangents(Mesh& mesh);

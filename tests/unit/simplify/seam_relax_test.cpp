@@ -187,6 +187,21 @@ TEST(SeamRelax, RelaxedOutputDoesNotDependOnThreads) {
   EXPECT_EQ(one.mesh.normals, two.mesh.normals);
 }
 
+// The multiple-choice engine relaxes the same way once its samples find nothing valid; still deterministic.
+TEST(SeamRelax, MultipleChoiceRelaxesToo) {
+  const Mesh sphere = make_faceted_sphere(16, 32);
+  const std::size_t target = sphere.triangle_count() / 4;
+  const SimplifyOptions keep{.target_ratio = 0.25, .engine = Engine::multiple_choice, .seams = SeamMode::keep};
+  EXPECT_FALSE(reached(simplify(sphere, keep), target));
+  const SimplifyResult one = simplify(sphere, {.target_ratio = 0.25, .threads = 1, .engine = Engine::multiple_choice});
+  const SimplifyResult two = simplify(sphere, {.target_ratio = 0.25, .threads = 2, .engine = Engine::multiple_choice});
+  EXPECT_TRUE(reached(one, target)) << one.triangles_after << " for " << target;
+  EXPECT_GE(one.seam_stage, SeamStage::corners);
+  EXPECT_EQ(one.mesh.positions, two.mesh.positions);
+  EXPECT_EQ(one.mesh.corner_wedge, two.mesh.corner_wedge);
+  expect_nothing_new(validate(sphere), validate(one.mesh));
+}
+
 // The deprecated flag means relax, also over an explicit keep.
 TEST(SeamRelax, PermissiveIsAnAliasOfRelax) {
   const Mesh sphere = make_faceted_sphere(16, 32);
