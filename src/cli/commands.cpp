@@ -274,7 +274,8 @@ void register_simplify(CLI::App& app) {
                     i, r.triangles_before, r.triangles_after, percent(r.qem_error_abs),
                     stop_reason_name(r.stop_reason),
                     r.timings.setup_ms + r.timings.initial_costs_ms + r.timings.collapse_ms + r.timings.output_ms);
-        if (r.seam_stage != SeamStage::strict) std::printf("  seams relaxed: stage %s\n", seam_stage_name(r.seam_stage));
+        if (r.seam_stage != SeamStage::strict)
+          std::printf("  seams relaxed: stage %s\n", seam_stage_name(r.seam_stage));
         if (!r.floors.empty()) {
           std::string floors;
           for (const std::string& f : r.floors) floors += (floors.empty() ? "" : ", ") + f;

@@ -902,11 +902,13 @@ Mesh CollapseMesh::output() const {
     if (tri_[3 * f] == kInvalidIndex) continue;
     for (int j = 0; j < 3; ++j) wedge_map[tri_wedge_[3 * f + j]] = 0;
   }
-  Mesh out = compact_vertices_and_wedges(
-      m, wedge_map, vertices,
-      {.wedge_vertex = reattached_ ? &wedge_vertex_ : nullptr,
-       .skin = skin_.empty() ? nullptr : &skin_, .normals = normals_.empty() ? nullptr : &normals_, .uvs = &uvs_,
-       .colors = &colors_, .morph_targets = &morphs_});
+  Mesh out = compact_vertices_and_wedges(m, wedge_map, vertices,
+                                         {.wedge_vertex = reattached_ ? &wedge_vertex_ : nullptr,
+                                          .skin = skin_.empty() ? nullptr : &skin_,
+                                          .normals = normals_.empty() ? nullptr : &normals_,
+                                          .uvs = &uvs_,
+                                          .colors = &colors_,
+                                          .morph_targets = &morphs_});
   for (std::size_t i = 0; i < vertices.size(); ++i) {
     const std::uint32_t v = vertices[i];
     if (state_[v] & kMoved) out.positions[i] = to_float(origin_ + vx_[v].pos * scale_);

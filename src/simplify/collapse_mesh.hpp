@@ -363,12 +363,12 @@ class CollapseMesh {
 
   // --- seam relaxation ---
   SeamStage stage_ = SeamStage::strict;
-  SeamStage last_stage_ = SeamStage::strict;   // the last stage the options allow
-  std::vector<std::uint8_t> lock_reason_;      // per vertex: 0, kLockedByUser or kLockedTopology
+  SeamStage last_stage_ = SeamStage::strict;  // the last stage the options allow
+  std::vector<std::uint8_t> lock_reason_;     // per vertex: 0, kLockedByUser or kLockedTopology
   static constexpr std::uint8_t kLockedByUser = 1, kLockedTopology = 2;
-  std::vector<std::size_t> material_faces_;    // alive faces per material (from SeamStage::corners on)
-  std::vector<std::uint32_t> wedge_vertex_;    // each wedge's vertex now (SeamStage::uv on; empty before)
-  bool reattached_ = false;                    // a wedge changed vertex (the output uses wedge_vertex_)
+  std::vector<std::size_t> material_faces_;  // alive faces per material (from SeamStage::corners on)
+  std::vector<std::uint32_t> wedge_vertex_;  // each wedge's vertex now (SeamStage::uv on; empty before)
+  bool reattached_ = false;                  // a wedge changed vertex (the output uses wedge_vertex_)
   // The seam constraint planes within each vertex's quadric that lie within one material (empty when seams
   // never relax or no vertex has two wedges): relax() takes them out of the quadrics at its first stage.
   std::vector<Quadric> seam_q_;

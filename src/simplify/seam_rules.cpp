@@ -428,8 +428,8 @@ void CollapseMesh::reclassify(std::uint32_t v) {
   st = static_cast<std::uint8_t>(n > 1 ? (st | kSeam) : (st & ~kSeam));
   st = static_cast<std::uint8_t>(n >= 3 ? (st & ~kFan) : (st | kFan));
   state_[v] = st;
-  kind_[v] = n >= 3   ? VertexKind::complex
-             : n == 2 ? VertexKind::seam
+  kind_[v] = n >= 3         ? VertexKind::complex
+             : n == 2       ? VertexKind::seam
              : (st & kOpen) ? VertexKind::border
                             : VertexKind::interior;
 }
@@ -529,7 +529,8 @@ bool CollapseMesh::relax() {
     sorted.erase(std::unique(sorted.begin(), sorted.end()), sorted.end());
     tri_key_.resize(pairs.size());
     for (std::size_t c = 0; c < pairs.size(); ++c) {
-      tri_key_[c] = static_cast<std::uint32_t>(std::lower_bound(sorted.begin(), sorted.end(), pairs[c]) - sorted.begin());
+      tri_key_[c] =
+          static_cast<std::uint32_t>(std::lower_bound(sorted.begin(), sorted.end(), pairs[c]) - sorted.begin());
     }
   }
   for (std::uint32_t v = 0; v < nv; ++v) reclassify(v);

@@ -96,10 +96,10 @@ struct Run {
   std::size_t uv_fold = 0;        // beside a fold of a chart onto itself, surface winding kept (eval)
   std::map<std::string, double> attribute_rms;  // attr only
   bool has_uv_metrics = false;
-  std::size_t target = 0;        // attr: sum over meshes of the target triangle count
-  std::string floors;            // attr: what held meshes that missed their target
-  std::string stage;             // attr: the last seam stage used by any mesh
-  bool extra = false;            // an --extra asset: not in the distance targets
+  std::size_t target = 0;  // attr: sum over meshes of the target triangle count
+  std::string floors;      // attr: what held meshes that missed their target
+  std::string stage;       // attr: the last seam stage used by any mesh
+  bool extra = false;      // an --extra asset: not in the distance targets
   bool reached() const { return double(triangles_out) <= std::ceil(1.02 * double(target)); }
   double throughput() const { return seconds > 0 ? double(triangles_in) / seconds : 0; }
 };
@@ -224,7 +224,8 @@ int main(int argc, char** argv) {
         if (m == "attr") {
           lodforge::SeamStage last = lodforge::SeamStage::strict;
           for (std::size_t i = 0; i < tris.size(); ++i) {
-            run.target += std::max<std::size_t>(1, static_cast<std::size_t>(std::llround(ratio * double(tris[i].triangle_count()))));
+            run.target += std::max<std::size_t>(
+                1, static_cast<std::size_t>(std::llround(ratio * double(tris[i].triangle_count()))));
             last = std::max(last, stages[i]);
             for (const std::string& f : floors[i]) {
               if (run.floors.find(f) == std::string::npos) run.floors += (run.floors.empty() ? "" : ",") + f;
@@ -325,8 +326,12 @@ int main(int argc, char** argv) {
     char label[160];
     std::snprintf(label, sizeof label, "%s %.0f%% (%.2fx%s%s)", a.asset.c_str(), 100 * a.ratio, q,
                   a.reached() ? "" : ", held by ", a.reached() ? "" : a.floors.c_str());
-    same_count_json.push_back({{"asset", a.asset}, {"ratio", a.ratio}, {"distance_ratio", q}, {"reached", a.reached()},
-                               {"floors", a.floors}, {"extra", a.extra}});
+    same_count_json.push_back({{"asset", a.asset},
+                               {"ratio", a.ratio},
+                               {"distance_ratio", q},
+                               {"reached", a.reached()},
+                               {"floors", a.floors},
+                               {"extra", a.extra}});
     if (!a.reached()) {
       held.push_back(label);
       continue;
@@ -341,30 +346,39 @@ int main(int argc, char** argv) {
               reached, attr_runs, missed_unexplained, verdict(missed_unexplained == 0));
   std::printf("  at equal triangles, geomean mean distance attr / pos= = %.3f (<= %.2f) over %zu runs  %s\n",
               same_count_ratio, kSameCountDistance, same_count.size(), verdict(same_count_ratio <= kSameCountDistance));
-  std::printf("  largest attr / pos= = %.3f (<= %.1f)  %s\n", worst, kSameCountDistanceMax,
-              verdict(over_max.empty()));
+  std::printf("  largest attr / pos= = %.3f (<= %.1f)  %s\n", worst, kSameCountDistanceMax, verdict(over_max.empty()));
   for (const std::string& o : over_max) std::printf("    over %.1fx: %s\n", kSameCountDistanceMax, o.c_str());
   for (const std::string& h : held) std::printf("    held by a floor (apart): %s\n", h.c_str());
 
   if (!json_path.empty()) {
     json j = json::array();
     for (const Run& r : runs) {
-      j.push_back({{"asset", r.asset}, {"method", r.method}, {"ratio", r.ratio}, {"triangles_in", r.triangles_in},
-                   {"target", r.target}, {"floors", r.floors}, {"seam_stage", r.stage},
-                   {"triangles_out", r.triangles_out}, {"seconds", r.seconds}, {"mean_rel", r.mean_rel},
-                   {"uv_flips", r.uv_flips}, {"uv_spanning", r.uv_spanning}, {"uv_unoriented", r.uv_unoriented},
-                   {"uv_fold", r.uv_fold}, {"attribute_rms", r.attribute_rms}});
+      j.push_back({{"asset", r.asset},
+                   {"method", r.method},
+                   {"ratio", r.ratio},
+                   {"triangles_in", r.triangles_in},
+                   {"target", r.target},
+                   {"floors", r.floors},
+                   {"seam_stage", r.stage},
+                   {"triangles_out", r.triangles_out},
+                   {"seconds", r.seconds},
+                   {"mean_rel", r.mean_rel},
+                   {"uv_flips", r.uv_flips},
+                   {"uv_spanning", r.uv_spanning},
+                   {"uv_unoriented", r.uv_unoriented},
+                   {"uv_fold", r.uv_fold},
+                   {"attribute_rms", r.attribute_rms}});
     }
-    std::ofstream(json_path) << json{{"runs", j},
-                                     {"distance_ratio", distance_ratio},
-                                     {"throughput_ratio", throughput_ratio},
-                                     {"uv_flips", flips},
-                                     {"targets_reached", reached},
-                                     {"attr_runs", attr_runs},
-                                     {"same_count_distance_ratio", same_count_ratio},
-                                     {"same_count", same_count_json},
-                                     {"uv_spanning", spans}}
-                                        .dump(2);
+    std::ofstream(json_path) << json{
+        {"runs", j},
+        {"distance_ratio", distance_ratio},
+        {"throughput_ratio", throughput_ratio},
+        {"uv_flips", flips},
+        {"targets_reached", reached},
+        {"attr_runs", attr_runs},
+        {"same_count_distance_ratio", same_count_ratio},
+        {"same_count", same_count_json},
+        {"uv_spanning", spans}}.dump(2);
   }
   return 0;
 }

@@ -20,7 +20,8 @@ using Json = nlohmann::json;
 
 constexpr const char* kOptionKeys =
     "engine, border, border_weight, regularization_weight, max_flip_angle_deg, seed, multiple_choice_k, max_batch, "
-    "attribute_weights, seams, permissive, priority_channel, attribute_placement, priority_lock, skin_weight_threshold, "
+    "attribute_weights, seams, permissive, priority_channel, attribute_placement, priority_lock, "
+    "skin_weight_threshold, "
     "skin_max_distance";
 
 std::string lod_keys() {

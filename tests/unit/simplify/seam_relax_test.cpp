@@ -136,7 +136,9 @@ TEST(SeamRelax, MaterialBoundariesHoldUnlessAllowed) {
   for (int i = 0; i < 6; ++i) cube.materials.push_back(MaterialSlot{.name = "side" + std::to_string(i)});
   cube.face_material.resize(cube.face_count());
   for (std::size_t f = 0; f < cube.face_count(); ++f) cube.face_material[f] = static_cast<std::uint32_t>(f / 32);
-  auto materials_of = [](const Mesh& m) { return std::set<std::uint32_t>(m.face_material.begin(), m.face_material.end()); };
+  auto materials_of = [](const Mesh& m) {
+    return std::set<std::uint32_t>(m.face_material.begin(), m.face_material.end());
+  };
 
   const SimplifyResult relax = simplify(cube, {.target_triangles = 6});
   EXPECT_GT(relax.triangles_after, 6u);
@@ -239,7 +241,8 @@ TEST_P(SeamRelaxCorpus, ReachesTheTargetOrNamesTheFloor) {
   for (const Mesh& m : asset.meshes) {
     const Mesh tris = triangulated(m);
     const SimplifyResult r = simplify(tris, {.target_ratio = c.ratio});
-    const std::size_t t = std::max<std::size_t>(1, static_cast<std::size_t>(std::llround(c.ratio * double(tris.triangle_count()))));
+    const std::size_t t =
+        std::max<std::size_t>(1, static_cast<std::size_t>(std::llround(c.ratio * double(tris.triangle_count()))));
     total += r.triangles_after;
     target += t;
     const bool mesh_reached = static_cast<double>(r.triangles_after) <= std::ceil(1.02 * static_cast<double>(t));
