@@ -308,6 +308,12 @@ constexpr EnumName<BorderMode> kBorderNames[] = {
     {"lock", BorderMode::lock},
 };
 
+constexpr EnumName<SeamMode> kSeamNames[] = {
+    {"keep", SeamMode::keep},
+    {"relax", SeamMode::relax},
+    {"relax_materials", SeamMode::relax_materials},
+};
+
 constexpr EnumName<AttributePlacement> kPlacementNames[] = {
     {"optimal", AttributePlacement::optimal},
     {"keep", AttributePlacement::keep},
@@ -489,7 +495,8 @@ const std::vector<Field<LodOptions>>& option_fields() {
       B::count("multiple_choice_k", &SimplifyOptions::multiple_choice_k, 1, 256),
       B::count("max_batch", &SimplifyOptions::max_batch, 0, std::numeric_limits<std::size_t>::max()),
       B::object("attribute_weights", &SimplifyOptions::attribute_weights, &attribute_weight_fields),
-      B::flag("permissive", &SimplifyOptions::permissive),
+      B::choice("seams", &SimplifyOptions::seams, kSeamNames),
+      B::flag("permissive", &SimplifyOptions::permissive),  // deprecated alias of "seams": "relax"
       B::text("priority_channel", &SimplifyOptions::priority_channel, &priority_channel_problem),
       B::choice("attribute_placement", &SimplifyOptions::attribute_placement, kPlacementNames),
       B::number("priority_lock", &SimplifyOptions::priority_lock, above(0)),

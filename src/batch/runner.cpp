@@ -114,6 +114,8 @@ struct MeshLod {
   double error_bound_abs = 0;
   BudgetCheck budget;
   StopReason stop = StopReason::target_reached;
+  std::vector<std::string> floors{};  // SimplifyResult::floors: what held a missed target
+  SeamStage seam_stage = SeamStage::strict;
   double seconds = 0;
 };
 using MeshChain = std::vector<MeshLod>;
@@ -254,6 +256,8 @@ MeshChain build_chain(const Mesh& source, const AssetClass& cls, std::size_t ass
     lod.error_bound_abs = r.budget.verified ? r.budget.bound_abs : spent + r.qem_error_abs;
     lod.budget = r.budget;
     lod.stop = r.stop_reason;
+    lod.floors = std::move(r.floors);
+    lod.seam_stage = r.seam_stage;
     lod.seconds = seconds_since(t0);
     chain.push_back(std::move(lod));
   }
@@ -408,12 +412,19 @@ Json target_triangles_json(const LodTarget& t, std::size_t source_triangles) {
   return nullptr;
 }
 
+std::string joined(const std::vector<std::string>& items) {
+  std::string out;
+  for (const std::string& i : items) out += (out.empty() ? "" : ", ") + i;
+  return out;
+}
+
 // Whether a LOD met what its spec asked, and why not (report.json "budget"): a ratio or triangle target within
-// 2%, an error budget held by measurement (collapses backed off to hold it are said, not a miss), and a LOD at
-// least 10% smaller than the level before (else it is close to a copy of it).
+// 2% (a miss names the floors that held it, SimplifyResult::floors), an error budget held by measurement
+// (collapses backed off to hold it are said, not a miss), and a LOD at least 10% smaller than the level
+// before (else it is close to a copy of it).
 Json budget_json(const LodTarget& t, std::size_t source_triangles, std::size_t triangles, std::size_t previous,
                  std::size_t level, const std::set<std::string>& stops, bool error_met, std::size_t backed_off,
-                 bool shows_previous) {
+                 bool shows_previous, const std::vector<std::string>& floors) {
   Json reasons = Json::array();
   std::string why_stopped;
   for (const std::string& s : stops) {
@@ -428,7 +439,8 @@ Json budget_json(const LodTarget& t, std::size_t source_triangles, std::size_t t
     if (static_cast<double>(triangles) > allowed) {
       reasons.push_back("target not reached: " + std::to_string(triangles) + " triangles for " +
                         std::to_string(target.get<std::size_t>()) +
-                        (why_stopped.empty() ? std::string() : " (stopped: " + why_stopped + ")"));
+                        (why_stopped.empty() ? std::string() : " (stopped: " + why_stopped + ")") +
+                        (floors.empty() ? std::string() : "; floor: " + joined(floors)));
     }
   }
   if (shows_previous || (triangles > 0 && 10 * triangles > 9 * previous)) {
@@ -650,6 +662,8 @@ class Pipeline {
       bool verified = true, met = true, certified = true;
       std::size_t undone = 0;
       std::set<std::string> stops;
+      std::vector<std::string> floors;  // what held the meshes that missed, first seen first
+      SeamStage seam_stage = SeamStage::strict;
       for (std::size_t m = 0; m < job.levels[k].size(); ++m) {
         lod_ptrs.push_back(&job.levels[k][m]);
         triangles += job.levels[k][m].triangle_count();
@@ -664,6 +678,10 @@ class Pipeline {
           undone += built.budget.collapses_undone;
         }
         if (job.asset.meshes[m].triangle_count() > 0) stops.insert(stop_reason_name(built.stop));
+        for (const std::string& f : built.floors) {
+          if (std::find(floors.begin(), floors.end(), f) == floors.end()) floors.push_back(f);
+        }
+        seam_stage = std::max(seam_stage, built.seam_stage);
       }
       std::string stop;
       for (const std::string& s : stops) stop += (stop.empty() ? "" : ",") + s;
@@ -701,7 +719,8 @@ class Pipeline {
                       // the budget's samples where the bound could not be refined; qem: a ranking only.
                       {"error_bound_kind", verified ? (certified ? "certified" : "measured") : "qem"},
                       {"budget", budget_json(spec.target, job.triangles, triangles, k == 0 ? job.triangles : previous,
-                                             k, stops, verified && met, undone, job.shows_previous[k])},
+                                             k, stops, verified && met, undone, job.shows_previous[k], floors)},
+                      {"seam_stage", seam_stage_name(seam_stage)},
                       {"mean_rel", finite(e.mean_rel())},
                       {"rms_rel", finite(e.rms_rel())},
                       {"hausdorff_rel", finite(e.hausdorff_rel())},

@@ -174,6 +174,7 @@ void register_simplify(CLI::App& app) {
     SimplifyOptions opt;
     double max_error_rel = -1;
     bool keep_attributes = false;
+    std::string seams = "relax";
     bool evaluate = false;
     bool no_verify = false;
   };
@@ -203,8 +204,12 @@ void register_simplify(CLI::App& app) {
       ->default_val(a->opt.attribute_weights.skin);
   cmd->add_flag("--keep-attributes", a->keep_attributes,
                 "moved vertices keep the surviving wedges' attributes (LODs can share one vertex buffer)");
-  cmd->add_flag("--permissive", a->opt.permissive,
-                "very low LODs: hard-edge normal seams may merge (UV seams and materials still hold)");
+  cmd->add_option("--seams", a->seams,
+                  "keep | relax | relax_materials: when seams stop the LOD above its target, relax them in stages "
+                  "(soft creases, hard normals, UV-seam corners; material boundaries with relax_materials)")
+      ->default_val(a->seams)
+      ->check(CLI::IsMember({"keep", "relax", "relax_materials"}));
+  cmd->add_flag("--permissive", a->opt.permissive, "deprecated: the same as --seams relax");
   cmd->add_option("--priority-channel", a->opt.priority_channel,
                   "painted priority: _LOD_PRIORITY, a custom attribute (_PAINT, _PAINT.y), COLOR_0.r, or none")
       ->default_val(a->opt.priority_channel);
@@ -220,6 +225,7 @@ void register_simplify(CLI::App& app) {
   cmd->callback([a] {
     SimplifyOptions opt = a->opt;
     if (a->keep_attributes) opt.attribute_placement = AttributePlacement::keep;
+    opt.seams = a->seams == "keep" ? SeamMode::keep : a->seams == "relax" ? SeamMode::relax : SeamMode::relax_materials;
     opt.max_error_rel = a->max_error_rel;
     opt.verify_budget = !a->no_verify;
     if (a->engine == "edge_collapse") opt.engine = Engine::edge_collapse;
@@ -269,6 +275,13 @@ void register_simplify(CLI::App& app) {
                     i, r.triangles_before, r.triangles_after, percent(r.qem_error_abs),
                     stop_reason_name(r.stop_reason),
                     r.timings.setup_ms + r.timings.initial_costs_ms + r.timings.collapse_ms + r.timings.output_ms);
+        if (r.seam_stage != SeamStage::strict)
+          std::printf("  seams relaxed: stage %s\n", seam_stage_name(r.seam_stage));
+        if (!r.floors.empty()) {
+          std::string floors;
+          for (const std::string& f : r.floors) floors += (floors.empty() ? "" : ", ") + f;
+          std::printf("  target not reached, held by: %s\n", floors.c_str());
+        }
         if (r.budget.verified) {
           // Measurements stop at the first distance over the budget: those print as "over".
           auto figure = [&](double x) {

@@ -352,6 +352,8 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
     auto replay = [&](CollapseMesh& cm, std::size_t from, std::size_t to) {
       for (std::size_t i = from; i < to; ++i) {
         const CollapseRecord& r = log[i];
+        while (cm.stage() < r.stage && cm.relax()) {
+        }
         Check c = cm.check(r.u, r.v, r.position, scratch);
         if (!c.ok()) return false;
         cm.commit(c, r.position, scratch);

@@ -179,6 +179,10 @@ CollapseMesh::CollapseMesh(const Mesh& m, const SimplifyOptions& options, Parall
     }
   }
   blend_ = options.attribute_placement == AttributePlacement::optimal;
+  const SeamMode seams = options.permissive && options.seams == SeamMode::keep ? SeamMode::relax : options.seams;
+  last_stage_ = seams == SeamMode::keep    ? SeamStage::strict
+                : seams == SeamMode::relax ? SeamStage::uv
+                                           : SeamStage::materials;
 
   setup_keys();
   setup(parallel);
@@ -247,6 +251,7 @@ void CollapseMesh::setup(Parallel& parallel) {
   }
   const bool preserve = options_.border_mode == BorderMode::preserve;
   const bool lock_border = options_.border_mode == BorderMode::lock;
+  lock_reason_.assign(nv, 0);
 
   // Face planes once per face (unit normal, offset, area); each vertex then sums its faces' quadrics.
   // Plain doubles and no value-initialisation: every entry is written below.
@@ -268,6 +273,9 @@ void CollapseMesh::setup(Parallel& parallel) {
       }
     }
   });
+
+  // Seam constraint planes per vertex as well, where seams may relax and any vertex has several wedges.
+  if (last_stage_ != SeamStage::strict && src_.wedge_count() > nv) seam_q_.assign(nv, Quadric{});
 
   // Each vertex's surface area (its quadric's weight), densely: summed in vertex order below.
   std::vector<double> vertex_area(nv, 0.0);
@@ -369,10 +377,14 @@ void CollapseMesh::setup(Parallel& parallel) {
             const bool seam_edge = key(f0 + corner_of(&tri_[f0], v)) != key(f1 + corner_of(&tri_[f1], v)) ||
                                    key(f0 + corner_of(&tri_[f0], x)) != key(f1 + corner_of(&tri_[f1], x));
             if (seam_edge) {
+              // Within one material the planes are also kept apart, for relax() to take them out again.
+              const bool apart = !seam_q_.empty() && face_material(fl[code0 / 2]) == face_material(fl[code1 / 2]);
               for (const std::size_t f3 : {f0, f1}) {
                 const std::uint32_t* t = &tri_[f3];
                 const Vec3d n = cross(vx_[t[1]].pos - vx_[t[0]].pos, vx_[t[2]].pos - vx_[t[0]].pos);
-                q += Quadric::from_boundary_edge(vx_[v].pos, vx_[x].pos, n, options_.border_weight);
+                const Quadric plane = Quadric::from_boundary_edge(vx_[v].pos, vx_[x].pos, n, options_.border_weight);
+                q += plane;
+                if (apart) seam_q_[v] += plane;
               }
             }
           }
@@ -391,9 +403,12 @@ void CollapseMesh::setup(Parallel& parallel) {
       vertex_area[v] = q.weight;
       if (user_locked[v] || non_manifold || inconsistent || (lock_border && boundary)) {
         kind_[v] = VertexKind::locked;
+        lock_reason_[v] = non_manifold || inconsistent ? kLockedTopology : kLockedByUser;
       } else {
         kind_[v] = nkeys > 1 ? seam_kind : boundary ? VertexKind::border : VertexKind::interior;
-        if (kind_[v] != VertexKind::complex) state_[v] |= kFan | (boundary ? kOpen : 0);
+        // A complex vertex is one manifold fan too: kOpen is kept exact for it (relax() may free it).
+        state_[v] |= boundary ? kOpen : 0;
+        if (kind_[v] != VertexKind::complex) state_[v] |= kFan;
       }
     }
   });
@@ -407,6 +422,7 @@ void CollapseMesh::setup(Parallel& parallel) {
       for (int i = 0; i < 3; ++i) {
         if (kind_[t[i]] == VertexKind::frozen) continue;
         kind_[t[i]] = VertexKind::locked;
+        lock_reason_[t[i]] = kLockedTopology;
         state_[t[i]] &= static_cast<std::uint8_t>(~kFan);
       }
     }
@@ -435,6 +451,7 @@ void CollapseMesh::setup(Parallel& parallel) {
       if (v < priority.size() && priority[v] != 1.0f) {
         const double pi = static_cast<double>(priority[v]);
         vx_[v].quadric *= pi * pi;
+        if (!seam_q_.empty()) seam_q_[v] *= pi * pi;
       }
     }
   });
@@ -463,6 +480,13 @@ Evaluation CollapseMesh::evaluate(std::uint32_t u, std::uint32_t v, bool with_co
   switch (rule(u, v)) {
     case EdgeRule::keep_u: ev.position = xu.pos; break;
     case EdgeRule::keep_v: ev.position = xv.pos; break;
+    case EdgeRule::either: {
+      // The endpoint where the surface error is smaller; on a tie the complex one stays (as keep_u / keep_v).
+      const double eu = surface.evaluate(xu.pos), ev_ = surface.evaluate(xv.pos);
+      const bool keep_v = ev_ < eu || (ev_ == eu && kind_[v] == VertexKind::complex && kind_[u] != VertexKind::complex);
+      ev.position = keep_v ? xv.pos : xu.pos;
+      break;
+    }
     default: {
       // The surface quadric alone where it pins the point down (corners, creases with a third plane);
       // with the rubber band where it does not (flat and nearly flat patches, where the surface error
@@ -577,7 +601,7 @@ Check CollapseMesh::check(std::uint32_t u, std::uint32_t v, const Vec3d& x, Scra
   const EdgeRule r = rule(u, v);
   // Default survivor: the lower id (u), so survivors keep input order; wedges may swap it below.
   std::uint32_t a = v, b = u;
-  if (r == EdgeRule::keep_v) std::swap(a, b);
+  if (r == EdgeRule::keep_v || (r == EdgeRule::either && vx_[v].pos == x && !(vx_[u].pos == x))) std::swap(a, b);
 
   // Stars: s.na = [neighbour after a in each face | neighbour before a in each face], s.nb likewise.
   const std::uint32_t ma = size_[a], mb = size_[b];
@@ -770,6 +794,8 @@ Check CollapseMesh::check(std::uint32_t u, std::uint32_t v, const Vec3d& x, Scra
     if (!wedges_carry_over(a, b, c)) {
       if (r == EdgeRule::optimal && wedges_carry_over(b, a, c)) {
         std::swap(a, b);
+      } else if (r == EdgeRule::either && reattach_ok(a, b, c)) {
+        c.reattach = true;
       } else {
         c.veto = Veto::seam;
         return c;
@@ -817,6 +843,9 @@ void CollapseMesh::reserve(Check& c) {
     pool_.resize(pool_.size() + c.list_capacity);
   }
   alive_faces_ -= c.edge_face_count;
+  if (!material_faces_.empty()) {
+    for (std::uint32_t i = 0; i < c.edge_face_count; ++i) --material_faces_[face_material(c.edge_faces[i])];
+  }
 }
 
 void CollapseMesh::apply(const Check& c, const Vec3d& x, Scratch& s) {
@@ -865,9 +894,13 @@ void CollapseMesh::apply(const Check& c, const Vec3d& x, Scratch& s) {
       const int j = corner_of(t, a);
       t[j] = b;
       const std::size_t corner = 3 * std::size_t{f} + j;
-      const int side = (k == 2 && (!seam || key(corner) == ka[1])) ? 1 : 0;
-      tri_wedge_[corner] = wb[side];
-      if (!tri_key_.empty()) tri_key_[corner] = kb[side];
+      if (c.reattach && key(corner) != ka[0] && (k < 2 || key(corner) != ka[1])) {
+        wedge_vertex_[tri_wedge_[corner]] = b;  // the corner's wedge goes with it, values and key unchanged
+      } else {
+        const int side = (k == 2 && (!seam || key(corner) == ka[1])) ? 1 : 0;
+        tri_wedge_[corner] = wb[side];
+        if (!tri_key_.empty()) tri_key_[corner] = kb[side];
+      }
       s.ring.push_back(f);
     }
   }
@@ -879,6 +912,7 @@ void CollapseMesh::apply(const Check& c, const Vec3d& x, Scratch& s) {
   size_[a] = 0;
 
   vx_[b].quadric += vx_[a].quadric;
+  if (!seam_q_.empty()) seam_q_[b] += seam_q_[a];
   vx_[b].anchors += vx_[a].anchors;
   vx_[b].anchor_sum = vx_[b].anchor_sum + vx_[a].anchor_sum;
   // Keep the kind of a free survivor exact (ring() and check() rely on it): it is on the boundary when
@@ -888,6 +922,12 @@ void CollapseMesh::apply(const Check& c, const Vec3d& x, Scratch& s) {
     if (kind_[b] == VertexKind::interior || kind_[b] == VertexKind::border) {
       kind_[b] = c.boundary ? VertexKind::border : VertexKind::interior;
     }
+  } else if (kind_[b] == VertexKind::complex) {
+    state_[b] = static_cast<std::uint8_t>(c.boundary ? (state_[b] | kOpen) : (state_[b] & ~kOpen));
+  }
+  if (c.reattach) {
+    reattached_ = true;
+    reclassify(b);  // b gained a's unpaired keys
   }
   if (!(vx_[b].pos == x)) {
     vx_[b].pos = x;
@@ -951,10 +991,13 @@ Mesh CollapseMesh::output() const {
     if (tri_[3 * f] == kInvalidIndex) continue;
     for (int j = 0; j < 3; ++j) wedge_map[tri_wedge_[3 * f + j]] = 0;
   }
-  Mesh out = compact_vertices_and_wedges(
-      m, wedge_map, vertices,
-      {.skin = skin_.empty() ? nullptr : &skin_, .normals = normals_.empty() ? nullptr : &normals_, .uvs = &uvs_,
-       .colors = &colors_, .morph_targets = &morphs_});
+  Mesh out = compact_vertices_and_wedges(m, wedge_map, vertices,
+                                         {.wedge_vertex = reattached_ ? &wedge_vertex_ : nullptr,
+                                          .skin = skin_.empty() ? nullptr : &skin_,
+                                          .normals = normals_.empty() ? nullptr : &normals_,
+                                          .uvs = &uvs_,
+                                          .colors = &colors_,
+                                          .morph_targets = &morphs_});
   for (std::size_t i = 0; i < vertices.size(); ++i) {
     const std::uint32_t v = vertices[i];
     if (state_[v] & kMoved) out.positions[i] = to_float(origin_ + vx_[v].pos * scale_);

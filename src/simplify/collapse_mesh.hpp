@@ -40,9 +40,9 @@
 namespace lodforge::collapse {
 
 // What a vertex may do, decided once from topology, wedges, materials and options.
-// A corner's *key* is its wedge and its face's material (in permissive mode wedges of one vertex that differ
-// only in normals/tangents share a key): a vertex with two keys sits on a seam (UV seam, hard edge or
-// material boundary), with three or more where seams meet.
+// A corner's *key* is its wedge and its face's material (from SeamStage::corners on, wedges of one vertex
+// that the stage counts as one share a key, see relax()): a vertex with two keys sits on a seam (UV seam, hard
+// edge or material boundary), with three or more where seams meet.
 enum class VertexKind : std::uint8_t {
   interior,  // manifold, closed fan, one key: may move and be removed
   border,    // manifold, open fan (on one boundary loop), one key: may move and be removed; constraint planes
@@ -64,6 +64,7 @@ enum class EdgeRule : std::uint8_t {
   optimal,    // full-edge collapse to the quadric's optimal placement
   keep_u,     // half-edge collapse v → u (u is pinned: it stays where it is)
   keep_v,     // half-edge collapse u → v
+  either,     // half-edge collapse onto the cheaper endpoint (SeamStage::uv on, an endpoint complex)
 };
 
 // kEdgeRule[kind(u)][kind(v)]. Rule of thumb: pinned vertices (complex, locked) attract, frozen ones repel, a
@@ -161,6 +162,7 @@ struct Check {
   std::uint32_t edge_face_count = 0;
   bool boundary = false;  // the survivor will be on the boundary
   std::uint32_t list_begin = 0, list_capacity = 0;  // where the survivor's merged face list goes (reserve())
+  bool reattach = false;  // SeamStage::uv on: the victim's wedges the edge faces do not pair go to the survivor
   bool ok() const { return veto == Veto::none; }
 };
 
@@ -195,8 +197,22 @@ class CollapseMesh {
   std::uint32_t version(std::uint32_t v) const { return version_[v]; }
   VertexKind kind(std::uint32_t v) const { return kind_[v]; }
   EdgeRule rule(std::uint32_t u, std::uint32_t v) const {
-    return kEdgeRule[static_cast<int>(kind_[u])][static_cast<int>(kind_[v])];
+    const EdgeRule r = kEdgeRule[static_cast<int>(kind_[u])][static_cast<int>(kind_[v])];
+    if (stage_ < SeamStage::uv) return r;
+    return movable_corner(u, v) ? EdgeRule::either : r;
   }
+
+  // Seam relaxation (SeamStage). stage() is the stage in force; relax() moves to the next stage the options
+  // allow, recomputes the corner keys and vertex kinds, and returns false when there is none. Every candidate
+  // must be evaluated again afterwards (rules and costs change).
+  SeamStage stage() const { return stage_; }
+  bool relax();
+  // Whether a checked collapse would remove the last triangles of a material (refused from SeamStage::corners
+  // on; the counts change in reserve(), so call it in commit order).
+  bool removes_last_material(const Check& c) const;
+  // Why edge (u, v) may never collapse, for a forbidden rule: "locked", "non_manifold", "seams_kept",
+  // "materials_kept" or "topology".
+  const char* forbidden_reason(std::uint32_t u, std::uint32_t v) const;
   // Cost and placement of collapsing edge (u, v), u < v, rule not forbidden. Thread-safe (reads only).
   // Placement: the surface quadric's minimiser where it is well conditioned, else the minimiser with the
   // rubber band added (or the best point of the edge); a locked endpoint stays where it is. Placement and
@@ -259,6 +275,21 @@ class CollapseMesh {
   Mesh output() const;
 
  private:
+  // SeamStage::uv on: an edge with a complex endpoint whose other endpoint is not pinned (locked or frozen).
+  bool movable_corner(std::uint32_t u, std::uint32_t v) const {
+    const VertexKind ku = kind_[u], kv = kind_[v];
+    auto pinned = [](VertexKind k) { return k == VertexKind::locked || k == VertexKind::frozen; };
+    return (ku == VertexKind::complex || kv == VertexKind::complex) && !pinned(ku) && !pinned(kv);
+  }
+  bool reattach_ok(std::uint32_t a, std::uint32_t b, const Check& c) const;
+  std::uint32_t face_material(std::uint32_t f) const {
+    const std::uint32_t sf = tri_source_[f];
+    return sf < src_.face_material.size() ? src_.face_material[sf] : 0u;
+  }
+  // Distinct keys around v, counted up to 3.
+  int count_keys(std::uint32_t v) const;
+  // v's kind (interior, border, seam or complex) and state bits from its key count.
+  void reclassify(std::uint32_t v);
   // kFan: a single, consistently oriented manifold fan (interior, border and seam vertices), whose boundary
   // status kOpen is kept exact by apply(); check() and ring() take their fast paths on it.
   static constexpr std::uint8_t kDead = 1, kMoved = 2, kSeam = 4, kFan = 8, kOpen = 16;
@@ -338,6 +369,18 @@ class CollapseMesh {
   std::vector<MorphTarget> morphs_;
   std::vector<SkinInfluences> skin_;
   std::vector<float> priority_;            // painted weight per vertex, empty when none
+
+  // --- seam relaxation ---
+  SeamStage stage_ = SeamStage::strict;
+  SeamStage last_stage_ = SeamStage::strict;  // the last stage the options allow
+  std::vector<std::uint8_t> lock_reason_;     // per vertex: 0, kLockedByUser or kLockedTopology
+  static constexpr std::uint8_t kLockedByUser = 1, kLockedTopology = 2;
+  std::vector<std::size_t> material_faces_;  // alive faces per material (from SeamStage::corners on)
+  std::vector<std::uint32_t> wedge_vertex_;  // each wedge's vertex now (SeamStage::uv on; empty before)
+  bool reattached_ = false;                  // a wedge changed vertex (the output uses wedge_vertex_)
+  // The seam constraint planes within each vertex's quadric that lie within one material (empty when seams
+  // never relax or no vertex has two wedges): relax() takes them out of the quadrics at its first stage.
+  std::vector<Quadric> seam_q_;
 };
 
 }  // namespace lodforge::collapse

@@ -24,6 +24,8 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <map>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -76,21 +78,33 @@ class GreedyEngine {
     result_.timings.initial_costs_ms = elapsed_ms(t0);
 
     t0 = std::chrono::steady_clock::now();
-    while (!stop()) {
-      select();
-      if (selected_.empty()) {
+    for (;;) {
+      while (!stop()) {
+        select();
+        if (selected_.empty()) {
+          requeue_deferred();
+          break;
+        }
+        ++result_.rounds;
+        check();
+        commit();
+        requeue();
+        release();
         requeue_deferred();
-        break;
+        purge();
       }
-      ++result_.rounds;
-      check();
-      commit();
-      requeue();
-      release();
-      requeue_deferred();
-      purge();
+      // Out of valid collapses before the target (not stopped by the error budget): the next seam stage, with
+      // every edge evaluated again (the queue is empty; what was parked is collected anew).
+      if (stop() || over_budget_ || !cm_.relax()) break;
+      result_.seam_stage = cm_.stage();
+      parked_ = ParkingLot(cm_.vertex_count());
+      collect();
     }
     result_.timings.collapse_ms = elapsed_ms(t0);
+    // An error budget stops most of its runs short of their (nominal) triangle target: no pass over the edges.
+    if (!stop_.reached(cm_.alive_faces()) && !stopped_) {
+      result_.floors = over_budget_ ? std::vector<std::string>{"error_budget"} : diagnose_floors(cm_, budget2_);
+    }
     finish_result(cm_, max_error_, stop_, over_budget_, result_, stopped_);
     return std::move(result_);
   }
@@ -273,6 +287,10 @@ class GreedyEngine {
         ++result_.vetoes[checks_[i].veto];
         continue;
       }
+      if (cm_.removes_last_material(checks_[i])) {  // counts only fall: never valid again
+        ++result_.vetoes[Veto::seam];
+        continue;
+      }
       const Check& c = checks_[i];
       ring_first_.push_back(total);
       total += 2 * (cm_.star_size(c.victim) + cm_.star_size(c.survivor) - 2 * c.edge_face_count);
@@ -281,7 +299,9 @@ class GreedyEngine {
       committed_.push_back(static_cast<std::uint32_t>(i));
       survivors_.push_back(c.survivor);
       ++result_.collapses;
-      if (log_ != nullptr) log_->push_back({selected_[i].u(), selected_[i].v, evals_[i].position, evals_[i].error});
+      if (log_ != nullptr) {
+        log_->push_back({selected_[i].u(), selected_[i].v, evals_[i].position, evals_[i].error, cm_.stage()});
+      }
       if (policies_.on_collapse) {
         policies_.on_collapse({.victim = c.victim,
                                .survivor = c.survivor,
@@ -403,6 +423,52 @@ class GreedyEngine {
 }  // namespace
 
 // ---- shared by the engines -------------------------------------------------------------------------------------
+
+std::vector<std::string> diagnose_floors(const CollapseMesh& cm, double budget2) {
+  std::map<std::string, std::size_t> count;
+  Scratch s;
+  std::vector<std::uint32_t> ring;
+  for (std::uint32_t u = 0; u < cm.vertex_count(); ++u) {
+    if (!cm.alive(u) || cm.star_size(u) == 0) continue;
+    cm.ring(u, ring);
+    for (std::uint32_t w : ring) {
+      if (w <= u) continue;
+      if (cm.rule(u, w) == EdgeRule::forbidden) {
+        ++count[cm.forbidden_reason(u, w)];
+        continue;
+      }
+      const Evaluation ev = cm.evaluate(u, w, /*with_cost=*/false);
+      if (ev.error > budget2) {
+        ++count["error_budget"];
+        continue;
+      }
+      const Check c = cm.check(u, w, ev.position, s);
+      switch (c.veto) {
+        case Veto::none: ++count[cm.removes_last_material(c) ? "material_slot" : "topology"]; break;
+        case Veto::seam:
+          ++count[cm.stage() == SeamStage::strict ? "seams_kept"
+                  : cm.stage() < SeamStage::materials ? "materials_kept"
+                                                       : "topology"];
+          break;
+        case Veto::skin: ++count["skin"]; break;
+        case Veto::uv_flip: ++count["uv_checks"]; break;
+        default: ++count["topology"]; break;
+      }
+    }
+  }
+  std::vector<std::pair<std::size_t, std::string>> order;
+  for (const auto& [name, n] : count) order.emplace_back(n, name);
+  // The named floors first, most refusals first; topology (link condition, folds) last: every mesh has some.
+  std::stable_sort(order.begin(), order.end(), [](const auto& x, const auto& y) {
+    const bool tx = x.second == "topology", ty = y.second == "topology";
+    return tx != ty ? ty : x.first > y.first;
+  });
+  std::vector<std::string> out;
+  for (const auto& o : order) out.push_back(o.second);
+  if (out.empty()) out.push_back("topology");  // no edge left at all
+  return out;
+}
+
 
 StopRule stop_rule(const SimplifyOptions& o, std::size_t input_triangles, double diagonal) {
   return StopRule::make(input_triangles,

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstddef>
+#include <string>
 #include <vector>
 
 #include "collapse_mesh.hpp"
@@ -19,6 +20,7 @@ struct CollapseRecord {
   std::uint32_t u = 0, v = 0;  // the candidate edge, u < v
   Vec3d position{};            // normalised (CollapseMesh) coordinates
   double error = 0;            // Evaluation::error
+  SeamStage stage = SeamStage::strict;  // the seam stage it was made in (replay relaxes the mesh as far first)
 };
 
 // Engines. `triangles` holds triangles only; the result's triangles_before is filled in by simplify().
@@ -49,6 +51,10 @@ double normalised_budget_squared(const StopRule& stop, double scale);
 // output time.
 void finish_result(const CollapseMesh& cm, double max_error, const StopRule& stop, bool over_budget,
                    SimplifyResult& result, bool stopped = false);
+
+// What holds a mesh above its target (SimplifyResult::floors): every edge left, sorted by why it may not
+// collapse; `budget2` as normalised_budget_squared().
+std::vector<std::string> diagnose_floors(const CollapseMesh& cm, double budget2);
 
 // Recomputes the tangents of `mesh` from its normals and UV set 0; no-op without them.
 void recompute_tangents(Mesh& mesh);

@@ -173,11 +173,15 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
       bool conflict = false;
       cm.for_each_closed_ring_vertex(w.u, w.v, [&](std::uint32_t x) { conflict = conflict || mark[x] == stamp; });
       if (conflict) continue;
+      if (cm.removes_last_material(w.check)) {  // counts only fall: never valid again
+        ++result.vetoes[Veto::seam];
+        continue;
+      }
       cm.for_each_closed_ring_vertex(w.u, w.v, [&](std::uint32_t x) { mark[x] = stamp; });
       cm.commit(w.check, w.eval.position, main_scratch);
       max_error = std::max(max_error, w.eval.error);
       ++result.collapses;
-      if (log != nullptr) log->push_back({w.u, w.v, w.eval.position, w.eval.error});
+      if (log != nullptr) log->push_back({w.u, w.v, w.eval.position, w.eval.error, cm.stage()});
       if (policies.on_collapse) {
         policies.on_collapse({.victim = w.check.victim,
                               .survivor = w.check.survivor,
@@ -189,12 +193,20 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
     }
     if (committed == 0) {
       over_budget = round_over_budget;
-      if (++failed_rounds >= kMaxFailedRounds) break;
+      if (++failed_rounds >= kMaxFailedRounds) {
+        // Out of valid collapses (as far as sampling tells) and not stopped by the budget: the next seam stage.
+        if (over_budget || !cm.relax()) break;
+        result.seam_stage = cm.stage();
+        failed_rounds = 0;
+      }
     } else {
       failed_rounds = 0;
     }
   }
   result.timings.collapse_ms = elapsed_ms(t0);
+  if (!stop.reached(cm.alive_faces())) {
+    result.floors = over_budget ? std::vector<std::string>{"error_budget"} : diagnose_floors(cm, budget2);
+  }
 
   finish_result(cm, max_error, stop, over_budget, result, stopped);
   return result;

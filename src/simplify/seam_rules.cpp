@@ -46,8 +46,7 @@ bool same_direction(const auto& a, const auto& b) {
 // (non-indexed glTF primitives store one per corner), normals and tangents within 0.1° (same_direction), are
 // one wedge: corners use the lowest such wedge id, so they are no seam; the others drop out of the output.
 // Keys are only materialised when they differ from the wedge ids: with several materials (a wedge used on
-// both sides of a material boundary gets one key per side) or in permissive mode (wedges of one vertex equal
-// in everything but normals and tangents share a key).
+// both sides of a material boundary gets one key per side); relax() materialises them for its stages.
 void CollapseMesh::setup_keys() {
   const Mesh& m = src_;
   const std::size_t nw = m.wedge_count(), nv = m.vertex_count(), nf = tri_source_.size();
@@ -68,7 +67,7 @@ void CollapseMesh::setup_keys() {
     shared |= first[v + 1] > 1;
     first[v + 1] += first[v];
   }
-  std::vector<std::uint32_t> exact, loose;  // class representative of each wedge (identity when empty)
+  std::vector<std::uint32_t> exact;  // class representative of each wedge (identity when empty)
   if (shared) {
     {
       std::vector<std::uint32_t> fill(first.begin(), first.end() - 1);
@@ -122,15 +121,14 @@ void CollapseMesh::setup_keys() {
     };
     classify(exact, true);
     for (std::uint32_t& w : tri_wedge_) w = exact[w];
-    if (options_.permissive) classify(loose, false);
   }
-  if (!several && loose.empty()) return;
+  if (!several) return;
 
   // Dense ids for (class, material) pairs.
   std::vector<std::uint64_t> pairs(tri_wedge_.size());
   for (std::size_t c = 0; c < tri_wedge_.size(); ++c) {
     const std::uint32_t w = tri_wedge_[c];
-    pairs[c] = (std::uint64_t{loose.empty() ? w : loose[w]} << 32) | material(c / 3);
+    pairs[c] = (std::uint64_t{w} << 32) | material(c / 3);
   }
   std::vector<std::uint64_t> sorted(pairs);
   std::sort(sorted.begin(), sorted.end());
@@ -261,7 +259,7 @@ void CollapseMesh::add_attribute_quadrics(std::uint32_t u, std::uint32_t v, Quad
   auto grads = [&](std::uint32_t w) { return std::span<const AttributeGradient>(&wg_[w * dims], dims); };
   // Most edges: neither endpoint on a seam, so each has one wedge (one key, and outside permissive mode a key
   // is one wedge), read from its first face; the pair merges. Saves the star scans (a third of the time).
-  if (((state_[u] | state_[v]) & kSeam) == 0 && !options_.permissive) {
+  if (((state_[u] | state_[v]) & kSeam) == 0 && stage_ == SeamStage::strict) {
     auto only_wedge = [&](std::uint32_t x) {
       const std::size_t f3 = 3 * std::size_t{pool_[begin_[x]]};
       return tri_wedge_[f3 + corner_of(&tri_[f3], x)];
@@ -387,6 +385,182 @@ bool CollapseMesh::wedges_carry_over(std::uint32_t a, std::uint32_t b, const Che
   return true;
 }
 
+// SeamStage::uv on, a half-edge collapse a → b whose wedges do not carry over (a is where seams meet): the
+// edge faces pair a's wedges with b's as wedges_carry_over() asks, and a's other wedges go to b with their
+// corners, values unchanged, so every face keeps the attributes of its own side (no chart-spanning face; the
+// UVs of the moved corners do not change, so none flips). Before SeamStage::materials a's faces must all
+// have one material: a material boundary holds.
+bool CollapseMesh::reattach_ok(std::uint32_t a, std::uint32_t b, const Check& c) const {
+  std::uint32_t ka[2], kb[2];
+  for (std::uint32_t i = 0; i < c.edge_face_count; ++i) {
+    const std::size_t f3 = 3 * std::size_t{c.edge_faces[i]};
+    const std::uint32_t* t = &tri_[f3];
+    ka[i] = key(f3 + corner_of(t, a));
+    kb[i] = key(f3 + corner_of(t, b));
+  }
+  if (c.edge_face_count == 2 && ((ka[0] == ka[1]) != (kb[0] == kb[1]))) return false;
+  if (stage_ < SeamStage::materials) {
+    const std::uint32_t* fl = star(a);
+    for (std::uint32_t i = 1; i < size_[a]; ++i) {
+      if (face_material(fl[i]) != face_material(fl[0])) return false;
+    }
+  }
+  return true;
+}
+
+int CollapseMesh::count_keys(std::uint32_t v) const {
+  std::uint32_t keys[3];
+  int n = 0;
+  const std::uint32_t* fl = star(v);
+  for (std::uint32_t i = 0; i < size_[v] && n < 3; ++i) {
+    const std::size_t f3 = 3 * std::size_t{fl[i]};
+    const std::uint32_t k = key(f3 + corner_of(&tri_[f3], v));
+    if (std::find(keys, keys + n, k) == keys + n) keys[n++] = k;
+  }
+  return n;
+}
+
+void CollapseMesh::reclassify(std::uint32_t v) {
+  const VertexKind k = kind_[v];
+  if (k == VertexKind::locked || k == VertexKind::frozen || !alive(v) || size_[v] == 0) return;
+  const int n = count_keys(v);
+  std::uint8_t st = state_[v];
+  st = static_cast<std::uint8_t>(n > 1 ? (st | kSeam) : (st & ~kSeam));
+  st = static_cast<std::uint8_t>(n >= 3 ? (st & ~kFan) : (st | kFan));
+  state_[v] = st;
+  kind_[v] = n >= 3         ? VertexKind::complex
+             : n == 2       ? VertexKind::seam
+             : (st & kOpen) ? VertexKind::border
+                            : VertexKind::interior;
+}
+
+// Normals of one vertex within this angle count as one from SeamStage::corners on: a crease this soft is a
+// smoothing-group split, not a modelled edge (cos 30°).
+constexpr double kCompatibleCreaseCos = 0.8660254037844387;
+
+bool CollapseMesh::relax() {
+  if (stage_ >= last_stage_) return false;
+  stage_ = static_cast<SeamStage>(static_cast<int>(stage_) + 1);
+  const std::size_t nf = tri_source_.size(), nv = vx_.size();
+  if (material_faces_.empty()) {
+    std::uint32_t most = 0;
+    for (std::size_t f = 0; f < nf; ++f) most = std::max(most, face_material(static_cast<std::uint32_t>(f)));
+    material_faces_.assign(std::size_t{most} + 1, 0);
+    for (std::size_t f = 0; f < nf; ++f) {
+      if (tri_[3 * f] != kInvalidIndex) ++material_faces_[face_material(static_cast<std::uint32_t>(f))];
+    }
+  }
+  if (stage_ == SeamStage::uv && wedge_vertex_.empty()) wedge_vertex_ = src_.wedge_vertex;
+  if (!seam_q_.empty()) {
+    // The planes hold seams to their outline, which the stages give up: left in, they made the order prefer
+    // collapses that keep seam lines over those that keep the surface (kenney_cakeBirthday at 50%: a mean
+    // distance of 1.7% of the diagonal at 768 triangles, where positions alone give 0.0002%).
+    for (std::uint32_t v = 0; v < nv; ++v) {
+      if (!alive(v)) continue;
+      Quadric minus = seam_q_[v];
+      minus *= -1.0;
+      vx_[v].quadric += minus;
+    }
+    std::vector<Quadric>().swap(seam_q_);
+  }
+  if (stage_ != SeamStage::uv) {  // uv keeps the keys of normals; it changes the rules (rule(), reattach_ok())
+    // Class representative of every wedge in use, per vertex, lowest wedge id first (as setup_keys()).
+    const Mesh& m = src_;
+    const std::size_t nw = m.wedge_count();
+    const bool soft = stage_ == SeamStage::corners;
+    auto same = [&](std::uint32_t x, std::uint32_t y) {
+      if (!normals_.empty()) {
+        const Vec3f& p = normals_[x];
+        const Vec3f& q = normals_[y];
+        const double d = double{p[0]} * q[0] + double{p[1]} * q[1] + double{p[2]} * q[2];
+        const double pp = double{p[0]} * p[0] + double{p[1]} * p[1] + double{p[2]} * p[2];
+        const double qq = double{q[0]} * q[0] + double{q[1]} * q[1] + double{q[2]} * q[2];
+        if (soft && !(d > 0.0 && d * d >= kCompatibleCreaseCos * kCompatibleCreaseCos * pp * qq)) return false;
+      }
+      if (soft && m.tangents.size() == nw && (m.tangents[x][3] < 0.0f) != (m.tangents[y][3] < 0.0f)) return false;
+      for (const MorphTarget& t : morphs_) {
+        if (t.position_deltas.size() == nw && !(t.position_deltas[x] == t.position_deltas[y])) return false;
+      }
+      for (const auto& set : uvs_) {
+        if (!set.empty() && !(set[x] == set[y])) return false;
+      }
+      for (const auto& set : colors_) {
+        if (!set.empty() && !(set[x] == set[y])) return false;
+      }
+      for (const CustomAttribute& ca : m.custom) {
+        const auto k = static_cast<std::size_t>(std::max(ca.components, 0));
+        if (k == 0 || ca.values.size() != nw * k) continue;
+        for (std::size_t i = 0; i < k; ++i) {
+          if (!(ca.values[x * k + i] == ca.values[y * k + i])) return false;
+        }
+      }
+      return true;
+    };
+    std::vector<std::uint32_t> rep(nw, kInvalidIndex), wedges;
+    for (std::uint32_t v = 0; v < nv; ++v) {
+      if (!alive(v) || size_[v] == 0) continue;
+      wedges.clear();
+      const std::uint32_t* fl = star(v);
+      for (std::uint32_t i = 0; i < size_[v]; ++i) {
+        const std::size_t f3 = 3 * std::size_t{fl[i]};
+        wedges.push_back(tri_wedge_[f3 + corner_of(&tri_[f3], v)]);
+      }
+      std::sort(wedges.begin(), wedges.end());
+      wedges.erase(std::unique(wedges.begin(), wedges.end()), wedges.end());
+      for (std::size_t i = 0; i < wedges.size(); ++i) {
+        rep[wedges[i]] = wedges[i];
+        for (std::size_t j = 0; j < i; ++j) {
+          if (rep[wedges[j]] == wedges[j] && same(wedges[i], wedges[j])) {
+            rep[wedges[i]] = wedges[j];
+            break;
+          }
+        }
+      }
+    }
+    const bool by_material = stage_ < SeamStage::materials;
+    std::vector<std::uint64_t> pairs(3 * nf, ~std::uint64_t{0});
+    for (std::size_t f = 0; f < nf; ++f) {
+      if (tri_[3 * f] == kInvalidIndex) continue;
+      const std::uint32_t mat = by_material ? face_material(static_cast<std::uint32_t>(f)) : 0u;
+      for (int j = 0; j < 3; ++j) pairs[3 * f + j] = (std::uint64_t{rep[tri_wedge_[3 * f + j]]} << 32) | mat;
+    }
+    std::vector<std::uint64_t> sorted(pairs);
+    std::sort(sorted.begin(), sorted.end());
+    sorted.erase(std::unique(sorted.begin(), sorted.end()), sorted.end());
+    tri_key_.resize(pairs.size());
+    for (std::size_t c = 0; c < pairs.size(); ++c) {
+      tri_key_[c] =
+          static_cast<std::uint32_t>(std::lower_bound(sorted.begin(), sorted.end(), pairs[c]) - sorted.begin());
+    }
+  }
+  for (std::uint32_t v = 0; v < nv; ++v) reclassify(v);
+  return true;
+}
+
+bool CollapseMesh::removes_last_material(const Check& c) const {
+  if (material_faces_.empty()) return false;
+  const std::uint32_t m0 = face_material(c.edge_faces[0]);
+  if (c.edge_face_count == 2) {
+    const std::uint32_t m1 = face_material(c.edge_faces[1]);
+    if (m0 == m1) return material_faces_[m0] <= 2;
+    if (material_faces_[m1] <= 1) return true;
+  }
+  return material_faces_[m0] <= 1;
+}
+
+const char* CollapseMesh::forbidden_reason(std::uint32_t u, std::uint32_t v) const {
+  for (std::uint32_t x : {u, v}) {
+    if (kind_[x] == VertexKind::frozen || (kind_[x] == VertexKind::locked && lock_reason_[x] == kLockedTopology)) {
+      return "non_manifold";
+    }
+  }
+  if (kind_[u] == VertexKind::locked || kind_[v] == VertexKind::locked) return "locked";
+  if (kind_[u] == VertexKind::complex || kind_[v] == VertexKind::complex) {
+    return stage_ < last_stage_ || last_stage_ == SeamStage::strict ? "seams_kept" : "materials_kept";
+  }
+  return "topology";
+}
+
 // Every distinct wedge around a with the wedge of b it becomes (apply()'s mapping: by key, across the edge
 // faces), as pairs in s.wedge_map, in a's face order.
 void CollapseMesh::map_wedges(std::uint32_t a, std::uint32_t b, const Check& c, Scratch& s) const {
@@ -403,7 +577,9 @@ void CollapseMesh::map_wedges(std::uint32_t a, std::uint32_t b, const Check& c, 
     const std::size_t f3 = 3 * std::size_t{fl[i]};
     const std::size_t corner = f3 + corner_of(&tri_[f3], a);
     const std::uint32_t wx = tri_wedge_[corner];
-    const std::uint32_t wt = (c.edge_face_count == 2 && key(corner) == ka[1]) ? wb[1] : wb[0];
+    const std::uint32_t k = key(corner);
+    std::uint32_t wt = (c.edge_face_count == 2 && k == ka[1]) ? wb[1] : wb[0];
+    if (c.reattach && k != ka[0] && (c.edge_face_count < 2 || k != ka[1])) wt = wx;  // goes with the corner
     bool seen = false;
     for (std::size_t j = 0; j < s.wedge_map.size(); j += 2) seen |= s.wedge_map[j] == wx;
     if (seen) continue;
@@ -441,8 +617,8 @@ Vec2f CollapseMesh::new_uv(int set, std::uint32_t wx, std::uint32_t wt, const Ve
   // and 10% this took the geometric mean of the UV stretch ratio (LOD against input) from 1.59 to 1.00, the
   // largest from 648 to 8, at the same UV error; snapping on UV seams only left it at 1.63. Mesh borders keep
   // the interpolated UV: nothing lies beyond them, and snapping there stretches the texture along the border.
-  const bool seam =
-      kind_[src_.wedge_vertex[wx]] == VertexKind::seam || kind_[src_.wedge_vertex[wt]] == VertexKind::seam;
+  const std::vector<std::uint32_t>& wedge_vertex = wedge_vertex_.empty() ? src_.wedge_vertex : wedge_vertex_;
+  const bool seam = kind_[wedge_vertex[wx]] == VertexKind::seam || kind_[wedge_vertex[wt]] == VertexKind::seam;
   if (seam) s = s < 0.5 ? 0.0 : 1.0;
   const auto fs = static_cast<float>(s);
   return {{from[0] + (to[0] - from[0]) * fs, from[1] + (to[1] - from[1]) * fs}};

@@ -94,6 +94,26 @@ const char* stop_reason_name(StopReason r) {
   return "unknown";
 }
 
+const char* seam_mode_name(SeamMode m) {
+  switch (m) {
+    case SeamMode::keep: return "keep";
+    case SeamMode::relax: return "relax";
+    case SeamMode::relax_materials: return "relax_materials";
+  }
+  return "unknown";
+}
+
+const char* seam_stage_name(SeamStage s) {
+  switch (s) {
+    case SeamStage::strict: return "strict";
+    case SeamStage::corners: return "corners";
+    case SeamStage::normals: return "normals";
+    case SeamStage::uv: return "uv";
+    case SeamStage::materials: return "materials";
+  }
+  return "unknown";
+}
+
 const char* veto_name(Veto v) {
   switch (v) {
     case Veto::none: return "none";

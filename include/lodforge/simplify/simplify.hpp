@@ -11,8 +11,9 @@
 //    collapsed edge (material boundaries count as seams): seam vertices move along their seam, never across
 //    it, UV charts never merge and no UV triangle flips. A survivor's wedges get attributes per
 //    attribute_placement (optimal: the Hoppe 1999 minimiser, clamped; keep: unchanged); tangents are
-//    recomputed from normals and UV set 0 when the input had them (optimal placement). Meshes whose every
-//    vertex is a seam (flat-shaded normals, per-face UV islands) barely simplify unless `permissive`;
+//    recomputed from normals and UV set 0 when the input had them (optimal placement). Where these rules
+//    stop the engine before its target, `seams` relaxes them in stages (SeamStage), each used only when the
+//    one before runs out of collapses, so a LOD the strict rules reach is exactly the strict rules' LOD;
 //  - skin: weights of a moved vertex blend its two sources (top influences, renormalised); morph deltas
 //    blend the same way;
 //  - faces: input order, each with its material and group;
@@ -61,6 +62,30 @@ enum class AttributePlacement {
   keep,     // the surviving wedges' values unchanged (all LODs can share one vertex buffer)
 };
 
+// What the triangle engines may do to seams when the strict rules (seam vertices move only along their seam,
+// vertices where seams meet never move) run out of collapses before the target.
+enum class SeamMode {
+  keep,             // never relax: the LOD may stop above its target (hero assets, baked normal maps)
+  relax,            // relax in stages (SeamStage) until the target is reached; material boundaries hold (default)
+  relax_materials,  // relax, and as a last stage let material boundaries move too
+};
+const char* seam_mode_name(SeamMode m);
+
+// The relaxation stages, in the order they are tried. A stage starts only when the stages before it found no
+// valid collapse left before the target; it keeps every check of the stages before it but the seam rule it
+// relaxes.
+enum class SeamStage : std::uint8_t {
+  strict,     // the wedge rule: no two distinct wedges of a vertex merge, seam corners never move
+  corners,    // wedges of a vertex whose normals differ by a soft crease (at most 30 degrees) count as one
+              // (their attribute quadrics join): corners of soft seams slide along or merge across them
+  normals,    // hard-normal seams: wedges that differ only in normals and tangents count as one
+  uv,         // UV-seam corners move by half-edge collapse; wedges the survivor lacks go with the corner and
+              // keep their values (no chart-spanning triangle, no UV flip: the UV checks hold)
+  materials,  // as uv, and material boundaries may move (SeamMode::relax_materials only); a material never
+              // loses its last triangle
+};
+const char* seam_stage_name(SeamStage s);
+
 enum class BorderMode {
   free,      // borders collapse like interior edges (no constraint planes)
   preserve,  // borders may collapse along themselves, held by perpendicular constraint planes (default)
@@ -94,8 +119,10 @@ struct SimplifyOptions {
   // --- attributes, seams, skinning, painted priority (edge_collapse.hpp has the vertex kinds and rules) ---
   AttributeWeights attribute_weights{};
   AttributePlacement attribute_placement = AttributePlacement::optimal;
-  // Very low LODs: wedges of one vertex that differ only in normals and tangents (hard edges) may merge; UV
-  // seams and material boundaries still hold.
+  // Seam relaxation when the strict rules stop before the target (SeamMode, SeamStage).
+  SeamMode seams = SeamMode::relax;
+  // Deprecated alias of seams = relax (it used to let hard-normal seams merge from the start); true wins over
+  // seams = keep.
   bool permissive = false;
   // Per-vertex painted weight scaling that vertex's quadrics: "_LOD_PRIORITY" (Mesh::priority), another custom
   // attribute ("_PAINT", "_PAINT.y"), a colour channel ("COLOR_0.r"), or "none". Used when the mesh has it.
@@ -225,6 +252,15 @@ struct SimplifyResult {
   // Engine::polychord only: the quad engine made less than half of the reduction, so the triangle engine
   // simplified the input itself.
   bool quad_engine_handed_over = false;
+  // The last seam stage the engine used (strict: none was needed or allowed).
+  SeamStage seam_stage = SeamStage::strict;
+  // When the target was not reached: what held the rest, most refused candidates first, each one of
+  // "locked" (locked and painted-locked vertices), "non_manifold" (vertices locked on non-manifold or
+  // inconsistently oriented edges), "skin" (the skinning rule), "material_slot" (a material's last triangle),
+  // "materials_kept" (material boundaries, seams relax), "seams_kept" (seams = keep), "uv_checks" (a UV
+  // triangle would flip or become a sliver), "topology" (the link condition, folds: closed parts at their
+  // smallest), "error_budget". Empty when the target was reached.
+  std::vector<std::string> floors;
 };
 
 // Throws std::invalid_argument listing every problem when options.validate() is not empty, and when a

@@ -20,7 +20,8 @@ using Json = nlohmann::json;
 
 constexpr const char* kOptionKeys =
     "engine, border, border_weight, regularization_weight, max_flip_angle_deg, seed, multiple_choice_k, max_batch, "
-    "attribute_weights, permissive, priority_channel, attribute_placement, priority_lock, skin_weight_threshold, "
+    "attribute_weights, seams, permissive, priority_channel, attribute_placement, priority_lock, "
+    "skin_weight_threshold, "
     "skin_max_distance";
 
 std::string lod_keys() {
@@ -612,6 +613,25 @@ TEST(BatchConfigErrors, NumericOptions) {
   EXPECT_EQ(error_with("/defaults/priority_lock", 0), expected("defaults.priority_lock: must be > 0"));
   EXPECT_EQ(error_with("/defaults/attribute_placement", "survivor"),
             expected("defaults.attribute_placement: must be one of \"optimal\", \"keep\", got string \"survivor\""));
+}
+
+TEST(BatchConfigErrors, Seams) {
+  EXPECT_EQ(error_with("/defaults/seams", "loose"),
+            expected("defaults.seams: must be one of \"keep\", \"relax\", \"relax_materials\", got string \"loose\""));
+  EXPECT_EQ(error_with("/classes/0/options/seams", true),
+            expected("classes[0].options.seams: must be one of \"keep\", \"relax\", \"relax_materials\", got true"));
+}
+
+// Seams relax by default (a production library expects its targets); a class keeps them, a LOD of it lets
+// material boundaries move.
+TEST(BatchConfig, SeamsPerClassAndLod) {
+  Json doc = minimal();
+  doc["classes"][0]["options"]["seams"] = "keep";
+  doc["classes"][0]["lods"][1]["seams"] = "relax_materials";
+  const BatchConfig c = parse_config(doc);
+  EXPECT_EQ(parse_config(minimal()).classes[0].lods[0].options.simplify.seams, SeamMode::relax);
+  EXPECT_EQ(c.classes[0].lods[0].options.simplify.seams, SeamMode::keep);
+  EXPECT_EQ(c.classes[0].lods[1].options.simplify.seams, SeamMode::relax_materials);
 }
 
 TEST(BatchConfigErrors, AttributeWeights) {

@@ -269,9 +269,11 @@ Mesh make_flat_shaded_sphere() {
 TEST(AttributeCollapse, PermissiveCrossesHardEdgesButNotUvSeams) {
   Mesh sphere = make_flat_shaded_sphere();
   // UVs continuous across hard edges: UV value per vertex, so only normals differ between a vertex's wedges.
-  const SimplifyResult strict = simplify(sphere, {.target_ratio = 0.25});
-  const SimplifyResult loose = simplify(sphere, {.target_ratio = 0.25, .permissive = true});
+  const SimplifyResult strict = simplify(sphere, {.target_ratio = 0.25, .seams = SeamMode::keep});
+  const SimplifyResult loose = simplify(sphere, {.target_ratio = 0.25, .seams = SeamMode::keep, .permissive = true});
   EXPECT_EQ(strict.stop_reason, StopReason::no_valid_collapse);  // every vertex is a seam
+  EXPECT_FALSE(strict.floors.empty());
+  EXPECT_EQ(strict.floors.front(), "seams_kept");
   EXPECT_EQ(loose.stop_reason, StopReason::target_reached);
   expect_nothing_new(validate(sphere), validate(loose.mesh));
 
@@ -314,7 +316,7 @@ TEST(AttributeCollapse, NormalsEqualUpToRoundingAreNoSeam) {
   EXPECT_EQ(b.mesh.wedge_count(), b.mesh.vertex_count());  // one wedge per vertex left
 
   // Face normals several degrees apart are hard edges: every vertex of the flat-shaded sphere stays a seam.
-  const SimplifyResult hard = simplify(make_flat_shaded_sphere(), {.target_ratio = 0.25});
+  const SimplifyResult hard = simplify(make_flat_shaded_sphere(), {.target_ratio = 0.25, .seams = SeamMode::keep});
   EXPECT_EQ(hard.stop_reason, StopReason::no_valid_collapse);
 }
 
