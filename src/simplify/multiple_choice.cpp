@@ -7,7 +7,7 @@
 //  - Garland & Heckbert 1997 for the cost and placement, the link condition of Dey et al. 1999 (both shared
 //    with the greedy engine through CollapseMesh).
 //
-// Parallel rounds (ALGORITHMS.md 3, 9.4): a round runs G steps at once. Each step draws its k samples with a
+// Parallel rounds: a round runs G steps at once. Each step draws its k samples with a
 // counter-based RNG keyed by (seed, round, step, sample), so what is drawn never depends on threads; the steps
 // are evaluated and checked in parallel against the mesh as it was at the start of the round; then, in order
 // of (cost, u, v), each step's winner is committed unless its neighbourhood touches one already committed this
@@ -27,7 +27,7 @@ namespace {
 constexpr std::size_t kStepDivisor = 64;
 constexpr std::size_t kMaxSteps = 2048;
 // Rounds in a row without a single commit before giving up: with random samples "no valid collapse" and
-// "over budget" are statistical verdicts (ALGORITHMS.md 3).
+// "over budget" are statistical verdicts.
 constexpr int kMaxFailedRounds = 32;
 
 std::uint64_t splitmix64(std::uint64_t x) {

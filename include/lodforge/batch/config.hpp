@@ -1,4 +1,4 @@
-// The batch config: which LOD chain each asset class gets (DESIGN.md part 9; issue 5, "Config").
+// The batch config: which LOD chain each asset class gets.
 //
 //   const BatchConfig config = load_config("configs/default.json");  // throws ConfigError, every problem
 //   if (const AssetClass* cls = match_class(config, "props/chair.obj")) {

@@ -40,7 +40,7 @@ enum class Engine {
                     // continues with edge_collapse (triangulating) if it stops before the target
 };
 
-// Multipliers of the attribute error terms against the geometric error (ALGORITHMS.md 2.2, 2.4); 0 leaves that
+// Multipliers of the attribute error terms against the geometric error; 0 leaves that
 // attribute out of the metric; all 0 gives exactly the geometry-only result. Units: a normal or colour change
 // of 1 across a face costs like moving that face by one mean input edge length (times the weight); UVs are
 // first scaled by the mesh's UV density (sqrt of 3-D area over UV area, per UV set), so a UV shift costs like
