@@ -48,7 +48,8 @@ constexpr double kMeshoptTarget = 1.5;     // held triangles / meshopt triangles
 // Distances below this fraction of the diagonal are rounding (a LOD equal to its source measures ~1e-9, not 0).
 constexpr double kZero = 1e-6;
 
-// One wedge per vertex, triangles only, one material: the geometry every method sees.
+// One wedge per vertex, triangles only, one material: the geometry every method sees. glTF meshes stay in their
+// own coordinates (node transforms are not applied): it is a test surface, not the scene.
 Mesh geometry_of(const io::Asset& asset) {
   Mesh g;
   g.materials.push_back(MaterialSlot{.name = "default"});
@@ -122,6 +123,7 @@ struct Case {
   std::size_t held_tris = 0, held_collapses = 0, log_size = 0;
   double bound = 0;         // reported, model units
   bool certified = false, within = false;
+  StopReason stop = StopReason::target_reached;
   double verify_ms = 0, total_ms = 0;
   double lod_to_src = 0, hausdorff = 0;  // measured, model units
   bool oracle_run = false;
@@ -250,6 +252,7 @@ void run_case(Case& c, const Mesh& src, const Settings& s) {
   c.certified = r.budget.certified;
   c.within = r.budget.within;
   c.verify_ms = r.budget.ms;
+  c.stop = r.stop_reason;
   const EvalResult e = evaluate(src, r.mesh, EvalOptions{.samples = s.eval_samples});
   c.lod_to_src = e.b_to_a.max;
   c.hausdorff = e.hausdorff;
@@ -273,7 +276,7 @@ void print_header() {
 
 void print_case(const Case& c) {
   const double d = c.diagonal;
-  std::string notes;
+  std::string notes = std::string("stop ") + stop_reason_name(c.stop) + " ";
   if (violates(c)) notes += "VIOLATION(bound<measured) ";
   if (c.hausdorff > kSamplingTolerance * c.budget * d) notes += "OVER-BUDGET ";
   if (!c.within) notes += "not-within ";
