@@ -17,6 +17,21 @@
 #   scripts/bench.sh quad [ARGS...]       only lodforge_bench_quad (polychord engine vs edge_collapse and meshopt on
 #                                         the quad corpus at 50/25/10%, plus a generated 100k-quad torus; --ratios,
 #                                         --mesh FILE, --input DIR, --generated-quads N, --no-generated)
+#   scripts/bench.sh budget [ARGS...]     only lodforge_bench_budget (error budgets, docs/budgets.md: the LOD simplify()
+#                                         makes with a budget vs its reported bound and the measured Hausdorff, vs
+#                                         the longest holding prefix of the same collapse sequence and vs meshopt at
+#                                         the same budget; slow: 1-4 minutes per case on 2 cores)
+#
+# lodforge_bench_budget (scanned and hard-surface corpus, geometry only):
+#   --quick                  bunny, fandisk, armadillo-remeshed-29k, wingnut at 0.0005,0.002,0.01
+#   --corpus DIR             corpus folder, its scanned/ and hardsurface/ meshes (default: the one the build names)
+#   --mesh FILE              run these files instead (repeatable)
+#   --budgets 0.0005,...     budgets as fractions of the bounding-box diagonal (default 0.0005,0.002,0.01,0.05)
+#   --eval-samples N         area samples per direction measuring the LOD's Hausdorff (default 1000000)
+#   --scan-samples N         the same for each prefix of the oracle scan and each meshopt step (default 0: eval's)
+#   --coarse-steps N, --fine-steps N   oracle scan strides, log/N (default 64, 512)
+#   --meshopt-steps N        bisection steps on meshopt's target count (default 12)
+#   --oracle-max-budget F    oracle and meshopt only for budgets up to F (default 0.01)
 #
 # lodforge_bench_simplify (lodforge vs meshoptimizer vs OpenMesh Decimater: speed, peak memory, quality):
 #   --quick                  fast subset (bunny, dragon, buddha, lucy; ratios 0.1,0.02,0.01; 500k generated mesh;
@@ -57,7 +72,8 @@ BATCH="$BUILD_DIR/tests/bench/lodforge_bench_batch"
 QUAD="$BUILD_DIR/tests/bench/lodforge_bench_quad"
 ATTRIBUTES="$BUILD_DIR/tests/bench/lodforge_bench_attributes"
 EVAL="$BUILD_DIR/tests/bench/lodforge_bench_eval"
-for b in "$SIMPLIFY" "$LOAD" "$BATCH" "$QUAD" "$ATTRIBUTES" "$EVAL"; do
+BUDGET="$BUILD_DIR/tests/bench/lodforge_bench_budget"
+for b in "$SIMPLIFY" "$LOAD" "$BATCH" "$QUAD" "$ATTRIBUTES" "$EVAL" "$BUDGET"; do
   if [ ! -x "$b" ]; then
     echo "bench: $b is missing (configure with -DLODFORGE_BUILD_BENCH=ON and build)" >&2
     exit 2
@@ -68,7 +84,7 @@ mkdir -p "$OUT_DIR"
 
 mode=all
 case "${1:-}" in
-  simplify | load | batch | quad | attributes | eval) mode=$1; shift ;;
+  simplify | load | batch | quad | attributes | eval | budget) mode=$1; shift ;;
 esac
 
 run_simplify() {
@@ -93,6 +109,7 @@ case $mode in
   batch) "$BATCH" "$@" ;;
   quad) "$QUAD" "$@" ;;
   eval) "$EVAL" "$@" ;;
+  budget) "$BUDGET" "$@" ;;
   attributes) "$ATTRIBUTES" --json "$OUT_DIR/bench-attributes.json" "$@" ;;
   all)
     load_args=()
