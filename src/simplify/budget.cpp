@@ -50,7 +50,8 @@ constexpr std::size_t kDecisionQueries = 4, kReportQueries = 16, kBaseQueries = 
 constexpr double kGridSpacing = 4.0;
 // Searches deciding their steps by the screen before every step is measured in full.
 constexpr int kScreenedSearches = 3;
-// Bisection stops when the undecided range is at most this fraction of the log (and one collapse at least).
+// Bisection stops when the undecided range is at most this fraction of the log or of the triangles left (and
+// one collapse at least).
 constexpr std::size_t kResolutionDivisor = 128;
 
 struct Measurement {
@@ -346,7 +347,12 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
     Scratch scratch;
     std::optional<CollapseMesh> at_lo;
     std::size_t lo = 0, hi = log.size();
-    const std::size_t resolution = std::max<std::size_t>(1, log.size() / kResolutionDivisor);
+    // The undecided range ends at 1/128 of the log, or of the triangles the LOD keeps where that is finer (a
+    // small LOD at the end of a long log: one step of the log would remove more triangles than it has).
+    auto resolution = [&] {
+      const std::size_t kept = at_lo ? at_lo->alive_faces() : triangles.triangle_count();
+      return std::max<std::size_t>(1, std::min(log.size(), kept) / kResolutionDivisor);
+    };
     std::optional<Mesh> best;
     // Replays records [from, to) on `cm`; false if a record no longer applies (it always should).
     auto replay = [&](CollapseMesh& cm, std::size_t from, std::size_t to) {
@@ -364,7 +370,7 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
     for (int attempt = 0;; ++attempt) {
       const bool in_full = attempt >= kScreenedSearches;
       if (!at_lo) at_lo.emplace(triangles, replay_options, parallel);
-      while (hi - lo > resolution) {
+      while (hi - lo > resolution()) {
         if (options.stop.requested()) {  // one poll per prefix measured
           stopped = true;
           break;
