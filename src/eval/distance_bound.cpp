@@ -329,16 +329,24 @@ DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const
   std::vector<Bound> bounds;
   std::vector<std::uint32_t> split;
   std::vector<Node> next;
+  // Nodes still open from earlier rounds (with their bounds), when the query allowance let only the worst split.
+  std::vector<Node> waiting;
+  std::vector<Bound> waiting_bounds;
   for (int round = 0;; ++round) {
-    const std::size_t n = active.size();
-    bounds.resize(n);
-    parallel_ranges(arena, n, 256, [&](std::size_t b, std::size_t e) {
+    const std::size_t fresh = active.size();
+    bounds.resize(fresh);
+    parallel_ranges(arena, fresh, 256, [&](std::size_t b, std::size_t e) {
       for (std::size_t i = b; i < e; ++i) bounds[i] = bound(active[i], target, flat_slack, plane_tolerance);
     });
-    for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t i = 0; i < fresh; ++i) {
       out.lower = std::max(out.lower, bounds[i].lower);
       out.queries += bounds[i].queried;
     }
+    active.insert(active.end(), waiting.begin(), waiting.end());
+    bounds.insert(bounds.end(), waiting_bounds.begin(), waiting_bounds.end());
+    waiting.clear();
+    waiting_bounds.clear();
+    const std::size_t n = active.size();
     out.rounds = round + 1;
     if (out.lower > options.give_up_above) {
       out.gave_up = true;
@@ -356,21 +364,23 @@ DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const
         split.push_back(static_cast<std::uint32_t>(i));
       }
     }
-    if (getenv("LF_DBG2")) {
-      fprintf(stderr, "round %d active %zu split %zu open %.3g enough %.3g lower %.3g\n", round, n, split.size(), open, enough, out.lower);
-      if (!split.empty() && (round + 1 >= options.max_rounds || out.queries + 7 * split.size() > max_queries)) {
-        std::vector<std::uint32_t> order(split);
-        std::sort(order.begin(), order.end(), [&](auto a, auto b) { return bounds[a].upper > bounds[b].upper; });
-        for (std::size_t j = 0; j < std::min<std::size_t>(5, order.size()); ++j) {
-          const Node& q = active[order[j]];
-          fprintf(stderr, "  node up %.3g lo %.3g  h %.3g %.3g %.3g tri %u %u %u  p0 %g %g %g size %.3g\n", bounds[order[j]].upper, bounds[order[j]].lower, q.h[0].distance, q.h[1].distance, q.h[2].distance, q.h[0].triangle, q.h[1].triangle, q.h[2].triangle, q.p[0][0], q.p[0][1], q.p[0][2], std::sqrt(dot(q.p[1]-q.p[0], q.p[1]-q.p[0])));
-        }
-      }
-    }
-    if (split.empty() || round + 1 >= options.max_rounds || out.queries + 7 * split.size() > max_queries) {
+    const std::size_t affordable = out.queries < max_queries ? (max_queries - out.queries) / 7 : 0;
+    if (split.empty() || round + 1 >= options.max_rounds || affordable == 0) {
       out.converged = split.empty();
       out.upper = std::max({settled, open, out.lower});
       return out;
+    }
+    if (split.size() > affordable) {
+      // Not all can split: the worst do (ties by position, so the choice is the same on any thread count), the
+      // others wait with their bounds.
+      std::stable_sort(split.begin(), split.end(),
+                       [&](std::uint32_t x, std::uint32_t y) { return bounds[x].upper > bounds[y].upper; });
+      for (std::size_t k = affordable; k < split.size(); ++k) {
+        waiting.push_back(active[split[k]]);
+        waiting_bounds.push_back(bounds[split[k]]);
+      }
+      split.resize(affordable);
+      std::sort(split.begin(), split.end());
     }
     // Split each into four at its edge midpoints (measured here, once per split).
     next.resize(4 * split.size());
