@@ -297,7 +297,8 @@ struct Job {
   std::optional<Clock::time_point> deadline;
   // Set by RunOptions::expire_in_simplify (testing aid): stop_request() then reads as past the deadline.
   std::atomic<bool> expired{false};
-  bool past_deadline() const { return deadline && Clock::now() > *deadline; }
+  bool expired_at_stage = false;  // set by RunOptions::expire_on_stage (testing aid)
+  bool past_deadline() const { return expired_at_stage || (deadline && Clock::now() > *deadline); }
   void check_deadline() const {
     if (past_deadline()) throw TimedOut{};
   }
@@ -838,6 +839,9 @@ auto stage(F body, double StageSeconds::*field, const char* name, double timeout
     }
     try {
       if (options.on_stage_start) options.on_stage_start(job->path, name);
+      if (job->deadline && options.expire_on_stage && options.expire_on_stage(job->path, name)) {
+        job->expired_at_stage = true;
+      }
       if (!first) job->check_deadline();
       body(*job);
       if (!job->finished && field != &StageSeconds::write) job->check_deadline();

@@ -100,6 +100,9 @@ struct RunOptions {
   // Testing aid: this asset (its '/'-separated relative path) reads as past its deadline from just before its
   // first simplify() call, after every check outside the engines: only their own polling can time it out.
   std::string expire_in_simplify{};
+  // Testing aid: an asset for which this returns true reads as past its deadline from the start of that stage
+  // (with an asset timeout set; no clock involved).
+  std::function<bool(const std::string& path, const char* stage)> expire_on_stage{};
 };
 
 // Seconds spent per stage, summed over assets (cache hits count only their lookup).
