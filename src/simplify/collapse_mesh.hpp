@@ -300,6 +300,10 @@ class CollapseMesh {
   std::uint32_t key(std::size_t corner) const { return tri_key_.empty() ? tri_wedge_[corner] : tri_key_[corner]; }
   bool flip_ok(const Vec3d& old_p, const Vec3d& x, const Vec3d& p, const Vec3d& q) const;
   bool wedges_carry_over(std::uint32_t a, std::uint32_t b, const Check& c) const;
+  // The keys of a's and b's corners in the edge's faces; false where the faces pair them inconsistently (a
+  // seam meets the edge at one end only).
+  bool edge_corner_keys(std::uint32_t a, std::uint32_t b, const Check& c, std::uint32_t (&ka)[2],
+                        std::uint32_t (&kb)[2]) const;
   // Victim wedge → target wedge of every distinct wedge around a (pairs in s.wedge_map, in a's face order).
   void map_wedges(std::uint32_t a, std::uint32_t b, const Check& c, Scratch& s) const;
   bool uv_ok(std::uint32_t a, std::uint32_t b, const Check& c, const Vec3d& x, Scratch& s) const;

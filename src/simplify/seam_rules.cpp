@@ -366,15 +366,20 @@ SkinInfluences CollapseMesh::blended_skin(std::uint32_t a, std::uint32_t b, doub
 //   a ===== b    (w1 -> v1, w2 -> v2)        w2   a ------- b      a's w2 corners have no partner at b
 //   w2  \ /  v2                                  |    w1     d
 //        d                                       f
-bool CollapseMesh::wedges_carry_over(std::uint32_t a, std::uint32_t b, const Check& c) const {
-  std::uint32_t ka[2], kb[2];
+bool CollapseMesh::edge_corner_keys(std::uint32_t a, std::uint32_t b, const Check& c, std::uint32_t (&ka)[2],
+                                    std::uint32_t (&kb)[2]) const {
   for (std::uint32_t i = 0; i < c.edge_face_count; ++i) {
     const std::size_t f3 = 3 * std::size_t{c.edge_faces[i]};
     const std::uint32_t* t = &tri_[f3];
     ka[i] = key(f3 + corner_of(t, a));
     kb[i] = key(f3 + corner_of(t, b));
   }
-  if (c.edge_face_count == 2 && ((ka[0] == ka[1]) != (kb[0] == kb[1]))) return false;
+  return !(c.edge_face_count == 2 && ((ka[0] == ka[1]) != (kb[0] == kb[1])));
+}
+
+bool CollapseMesh::wedges_carry_over(std::uint32_t a, std::uint32_t b, const Check& c) const {
+  std::uint32_t ka[2], kb[2];
+  if (!edge_corner_keys(a, b, c, ka, kb)) return false;
   if ((state_[a] & kSeam) == 0) return true;  // one key at a: every corner carries ka[0]
   const std::uint32_t* fl = star(a);
   for (std::uint32_t i = 0; i < size_[a]; ++i) {
@@ -392,13 +397,7 @@ bool CollapseMesh::wedges_carry_over(std::uint32_t a, std::uint32_t b, const Che
 // have one material: a material boundary holds.
 bool CollapseMesh::reattach_ok(std::uint32_t a, std::uint32_t b, const Check& c) const {
   std::uint32_t ka[2], kb[2];
-  for (std::uint32_t i = 0; i < c.edge_face_count; ++i) {
-    const std::size_t f3 = 3 * std::size_t{c.edge_faces[i]};
-    const std::uint32_t* t = &tri_[f3];
-    ka[i] = key(f3 + corner_of(t, a));
-    kb[i] = key(f3 + corner_of(t, b));
-  }
-  if (c.edge_face_count == 2 && ((ka[0] == ka[1]) != (kb[0] == kb[1]))) return false;
+  if (!edge_corner_keys(a, b, c, ka, kb)) return false;
   if (stage_ < SeamStage::materials) {
     const std::uint32_t* fl = star(a);
     for (std::uint32_t i = 1; i < size_[a]; ++i) {

@@ -14,7 +14,6 @@
 // repeated faces removed (simplify() drops them first anyway), so that all three see the same surface.
 // Prints a table and MET / NOT MET lines; always exits 0 (a benchmark, not a test).
 #include <CLI/CLI.hpp>
-#include <meshoptimizer.h>
 
 #include <algorithm>
 #include <chrono>
@@ -29,6 +28,7 @@
 
 #include "engines.hpp"
 #include "lodforge/core/mesh.hpp"
+#include "meshopt_peer.hpp"
 #include "lodforge/eval/eval.hpp"
 #include "lodforge/io/asset.hpp"
 #include "lodforge/simplify/simplify.hpp"
@@ -71,21 +71,6 @@ std::vector<std::uint32_t> vertex_indices(const Mesh& m) {
   idx.reserve(m.corner_count());
   for (std::size_t c = 0; c < m.corner_count(); ++c) idx.push_back(m.corner_vertex(c));
   return idx;
-}
-
-// meshopt_simplify down to about `target_triangles`; target_error 1 (the whole diagonal) so only the count stops it.
-Mesh run_meshopt(const Mesh& src, const std::vector<std::uint32_t>& indices, std::size_t target_triangles) {
-  std::vector<std::uint32_t> dst(indices.size());
-  float result_error = 0;
-  const std::size_t n = meshopt_simplify(dst.data(), indices.data(), indices.size(), &src.positions[0][0],
-                                         src.positions.size(), sizeof(Vec3f), 3 * target_triangles,
-                                         /*target_error=*/1.0f, /*options=*/0, &result_error);
-  Mesh out;
-  out.materials.push_back(MaterialSlot{.name = "default"});
-  out.positions = src.positions;
-  for (std::uint32_t v = 0; v < src.positions.size(); ++v) out.wedge_vertex.push_back(v);
-  for (std::size_t i = 0; i + 2 < n; i += 3) out.add_face({dst[i], dst[i + 1], dst[i + 2]});
-  return out;
 }
 
 // Replays a collapse log on a working mesh the way the budget back-off does (same check and commit).
@@ -229,7 +214,7 @@ void run_meshopt_search(Case& c, const Mesh& src, const Settings& s) {
   for (int step = 0; step < s.meshopt_steps; ++step) {
     const auto mid = static_cast<std::size_t>(std::llround(std::sqrt(lo * hi)));
     if (mid <= static_cast<std::size_t>(lo) || mid >= static_cast<std::size_t>(hi)) break;
-    const Mesh out = run_meshopt(src, indices, mid);
+    const Mesh out = bench::meshopt_lod(src, indices, mid);
     if (meets(src, out, budget_abs, s)) {
       hi = static_cast<double>(mid);
       hi_tris = out.triangle_count();

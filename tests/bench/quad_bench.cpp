@@ -8,7 +8,6 @@
 // above that count, both engines run again on the geometry alone (rows "polychord(geom)", "edge_col(geom)")
 // and the mean-distance target compares those two.
 #include <CLI/CLI.hpp>
-#include <meshoptimizer.h>
 
 #include <algorithm>
 #include <chrono>
@@ -20,6 +19,7 @@
 #include <vector>
 
 #include "lodforge/core/mesh.hpp"
+#include "meshopt_peer.hpp"
 #include "lodforge/eval/eval.hpp"
 #include "lodforge/io/asset.hpp"
 #include "lodforge/quad/quad_stats.hpp"
@@ -79,17 +79,7 @@ Mesh run_meshopt(const Mesh& mesh, std::size_t target_triangles) {
   const Mesh tris = triangulated(mesh);
   std::vector<std::uint32_t> indices;
   for (std::size_t c = 0; c < tris.corner_count(); ++c) indices.push_back(tris.corner_vertex(c));
-  std::vector<std::uint32_t> dst(indices.size());
-  float result_error = 0;
-  const std::size_t n = meshopt_simplify(dst.data(), indices.data(), indices.size(), &mesh.positions[0][0],
-                                         mesh.positions.size(), sizeof(Vec3f), 3 * target_triangles,
-                                         /*target_error=*/1.0f, /*options=*/0, &result_error);
-  Mesh out;
-  out.materials.push_back(MaterialSlot{.name = "default"});
-  out.positions = mesh.positions;
-  for (std::uint32_t v = 0; v < mesh.positions.size(); ++v) out.wedge_vertex.push_back(v);
-  for (std::size_t i = 0; i + 2 < n; i += 3) out.add_face({dst[i], dst[i + 1], dst[i + 2]});
-  return out;
+  return bench::meshopt_lod(mesh, indices, target_triangles);
 }
 
 void measure(Row& row, const Mesh& original, const Mesh& simplified, std::size_t eval_samples) {
