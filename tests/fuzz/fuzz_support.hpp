@@ -103,4 +103,22 @@ void fuzz_reader(const std::uint8_t* data, std::size_t size, const char* name, R
   }
 }
 
+// The harness of a reader that takes a path (glTF, GLB: the JSON may name other files beside it): the bytes go
+// to scratch_dir()/input.EXT, load_asset reads them, and what it accepts is checked and saved as output.EXT.
+inline void fuzz_asset_file(const std::uint8_t* data, std::size_t size, std::string_view extension) {
+  const std::filesystem::path path = write_input("input." + std::string(extension), as_text(data, size));
+  io::Asset asset;
+  try {
+    asset = io::load_asset(path);
+  } catch (const io::IoError&) {
+    return;  // the documented rejection
+  }
+  check_asset(asset);
+  try {
+    io::save_asset(asset, output_path("output." + std::string(extension)));
+  } catch (const io::IoError&) {
+    // save_asset's documented error
+  }
+}
+
 }  // namespace lodforge::fuzz

@@ -1,23 +1,8 @@
-// libFuzzer harness: load_asset on a glTF (.gltf: JSON, buffers as data: URIs) file, then save_asset to the
-// same format if it was accepted (fuzz_support.hpp). The glTF reader takes a path, so each input is written to
-// a scratch folder first (fuzz_support.hpp, write_input).
+// libFuzzer harness: load_asset on a glTF (.gltf: JSON, buffers as data: URIs) file, then save_asset to the same format if it was
+// accepted (fuzz_support.hpp, fuzz_asset_file: the glTF reader takes a path, so the input is written first).
 #include "fuzz_support.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  namespace io = lodforge::io;
-  namespace fuzz = lodforge::fuzz;
-  const std::filesystem::path path = fuzz::write_input("input.gltf", fuzz::as_text(data, size));
-  io::Asset asset;
-  try {
-    asset = io::load_asset(path);
-  } catch (const io::IoError&) {
-    return 0;  // the documented rejection
-  }
-  fuzz::check_asset(asset);
-  try {
-    io::save_asset(asset, fuzz::output_path("output.gltf"));
-  } catch (const io::IoError&) {
-    // save_asset's documented error
-  }
+  lodforge::fuzz::fuzz_asset_file(data, size, "gltf");
   return 0;
 }
