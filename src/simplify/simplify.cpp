@@ -141,6 +141,21 @@ constexpr std::size_t kPolychordResolutionDivisor = 32;
 
 bool verifies_budget(const SimplifyOptions& o) { return o.verify_budget && (o.max_error_abs >= 0.0 || o.max_error_rel >= 0.0); }
 
+// The result of a quad engine run taken as it is (moved from `q`; stop reason target_reached).
+SimplifyResult quad_engine_result(quad::PolychordResult&& q, const SimplifyOptions& options) {
+  SimplifyResult r;
+  r.mesh = std::move(q.mesh);
+  // Normals and UVs of merged wedges changed: tangents follow them, as the triangle engine's do.
+  if (options.attribute_placement == AttributePlacement::optimal) collapse::recompute_tangents(r.mesh);
+  r.triangles_after = q.triangles_after;
+  r.qem_error_abs = q.error_bound_abs;
+  r.collapses = q.collapses;
+  r.vetoes[Veto::weld] = q.rejected;
+  r.vetoes[Veto::error_budget] = q.over_budget;
+  r.stop_reason = StopReason::target_reached;
+  return r;
+}
+
 // The quad output is compacted, so vertex ids changed; a locked vertex never moved, so it is found again by its
 // exact position.
 std::vector<std::uint32_t> locked_vertices_in(const Mesh& output, const Mesh& input,
@@ -185,14 +200,7 @@ SimplifyResult hold_polychord_budget(const Mesh& mesh, const SimplifyOptions& op
   const auto t0 = std::chrono::steady_clock::now();
   const StopRule stop = collapse::stop_rule(options, mesh.triangle_count(), compute_bounds(mesh).diagonal());
   auto quad_result = [&](quad::PolychordResult&& p, const BudgetCheck& check) {
-    SimplifyResult r;
-    r.mesh = std::move(p.mesh);
-    if (options.attribute_placement == AttributePlacement::optimal) collapse::recompute_tangents(r.mesh);
-    r.triangles_after = p.triangles_after;
-    r.qem_error_abs = p.error_bound_abs;
-    r.collapses = p.collapses;
-    r.vetoes[Veto::weld] = p.rejected;
-    r.vetoes[Veto::error_budget] = p.over_budget;
+    SimplifyResult r = quad_engine_result(std::move(p), options);
     r.stop_reason = StopReason::error_budget;
     r.budget = check;
     r.budget.collapses_undone = q.collapses > p.collapses ? q.collapses - p.collapses : 0;
@@ -305,18 +313,9 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options, c
       r.qem_error_abs = std::max(r.qem_error_abs, q.error_bound_abs);
     }
   } else {
-    r.mesh = std::move(q.mesh);
-    // Normals and UVs of merged wedges changed: tangents follow them, as the triangle engine's do.
-    if (options.attribute_placement == AttributePlacement::optimal) collapse::recompute_tangents(r.mesh);
-    r.triangles_after = q.triangles_after;
-    r.qem_error_abs = q.error_bound_abs;
-    r.collapses = q.collapses;
-    r.vetoes[Veto::weld] = q.rejected;
-    r.vetoes[Veto::error_budget] = q.over_budget;
-    r.stop_reason = StopReason::target_reached;
+    r = quad_engine_result(std::move(q), options);
   }
   const double diagonal = compute_bounds(mesh).diagonal();
-  r.qem_error_rel = diagonal > 0.0 ? r.qem_error_abs / diagonal : 0.0;
   if (verifies_budget(options) && r.stop_reason != StopReason::stopped) {
     const Mesh& reference = options.budget_reference != nullptr ? *options.budget_reference : mesh;
     BudgetCheck check = collapse::measure_budget(r.mesh, reference, stop.max_error, options.threads);
@@ -327,6 +326,7 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options, c
     r.error_bound_abs = r.budget.bound_abs;
     r.error_bound_rel = diagonal > 0.0 ? r.budget.bound_abs / diagonal : 0.0;
   }
+  r.qem_error_rel = diagonal > 0.0 ? r.qem_error_abs / diagonal : 0.0;
   r.triangles_before = mesh.triangle_count();
   r.quads_before = q.quads_before;
   r.quads_after = count_face_kinds(r.mesh).quads;
