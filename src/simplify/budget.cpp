@@ -60,6 +60,7 @@ struct Measurement {
   double bound = 0;        // output → reference, an upper bound (+inf when not computed or over the budget)
   double sampled = 0;      // output → reference, the largest distance measured
   double reverse = 0;      // reference → output, sampled (+inf when a sample exceeded the budget)
+  std::vector<char> on_target;  // per output triangle: a reference triangle bit for bit (distance 0)
 };
 
 // Sampled points visited coarse to fine: every 64th, then every 8th, then the rest, each pass in order (the BVH
@@ -188,14 +189,14 @@ class Reference {
   // Samples both ways, stopping at the first distance over the budget: output vertices and triangle centroids
   // → reference, reference vertices and triangle centroids → output, coarse passes of both first. Points the
   // output shares exactly with the reference are at distance 0 and skipped. Cheap, and decisive wherever the
-  // output fails; `on_target` receives the output triangles that are reference triangles.
-  Measurement screen(const Mesh& output, double budget, std::size_t passes, std::vector<char>& on_target) {
+  // output fails.
+  Measurement screen(const Mesh& output, double budget) {
     Measurement m;
     const SurfaceIndex lod(output);
     const SurfaceKeys lod_keys(lod);
     std::vector<char> unused;
     // The output's triangles are large and may bridge a concavity: sampled on a grid, not only at centroids.
-    const std::vector<Vec3d> forward = samples_not_in(lod, keys_, on_target, kGridSpacing * budget);
+    const std::vector<Vec3d> forward = samples_not_in(lod, keys_, m.on_target, kGridSpacing * budget);
     const std::vector<Vec3d> reverse = samples_not_in(index_, lod_keys, unused);
     m.bound = std::numeric_limits<double>::infinity();
     if (index_.empty() || lod.empty()) {  // nothing to measure against: only nothing against nothing holds
@@ -213,7 +214,7 @@ class Reference {
         break;
       }
     }
-    for (std::size_t pass = 0; pass < passes && !over.load(); ++pass) {
+    for (std::size_t pass = 0; pass < std::size(kPassStrides) && !over.load(); ++pass) {
       m.sampled = std::max(m.sampled, pass_max(arena_, pass, forward.size(), budget, over, [&](std::size_t i, std::uint32_t& hint) {
                              const BvhHit h = index_.bvh.closest_point(forward[i], hint);
                              hint = h.triangle;
@@ -238,16 +239,15 @@ class Reference {
   // budget (as far as its query allowance goes): the bound decides, or where it could not be refined far
   // enough, the largest distance it measured.
   Measurement measure(const Mesh& output, double budget) {
-    std::vector<char> on_target;
-    Measurement m = screen(output, budget, std::size(kPassStrides), on_target);
+    Measurement m = screen(output, budget);
     if (!m.within) return m;
-    const std::size_t measured = static_cast<std::size_t>(std::count(on_target.begin(), on_target.end(), 0));
+    const std::size_t measured = static_cast<std::size_t>(std::count(m.on_target.begin(), m.on_target.end(), 0));
     DistanceBoundOptions options{.tolerance = kBoundTolerance,
                                  .good_enough = kDecisionFraction * budget,
                                  .give_up_above = budget,
                                  .max_queries = kDecisionQueries * measured + kBaseQueries,
                                  .threads = threads_,
-                                 .on_target = &on_target};
+                                 .on_target = &m.on_target};
     DistanceBound b = distance_bound(output, index_, options);
     if (b.converged && b.upper > budget && b.lower < budget) {
       // Just under the budget: refine until the bound decides (the tolerance that separates them).
@@ -263,10 +263,10 @@ class Reference {
     return m;
   }
 
-  // A tighter bound on an output already known to hold (never looser than `known`), for the report.
-  double tighter_bound(const Mesh& output, double budget, double known) {
-    std::vector<char> on_target;
-    samples_not_in(SurfaceIndex(output), keys_, on_target);
+  // A tighter bound on an output that measure() found within (`known`: never looser than its bound), for the
+  // report.
+  double tighter_bound(const Mesh& output, double budget, const Measurement& known) {
+    const std::vector<char>& on_target = known.on_target;
     const std::size_t measured = static_cast<std::size_t>(std::count(on_target.begin(), on_target.end(), 0));
     const DistanceBound b = distance_bound(output, index_,
                                            {.tolerance = kBoundTolerance,
@@ -274,13 +274,9 @@ class Reference {
                                             .max_queries = kReportQueries * measured + kBaseQueries,
                                             .threads = threads_,
                                             .on_target = &on_target});
-    return std::min(known, b.upper);
+    return std::min(known.bound, b.upper);
   }
 
-  Measurement screen(const Mesh& output, double budget) {
-    std::vector<char> on_target;
-    return screen(output, budget, std::size(kPassStrides), on_target);
-  }
 
  private:
   void suspect(const Vec3d& p) {
@@ -382,14 +378,14 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
           continue;
         }
         Mesh out = trial.output();
-        const Measurement m = in_full ? reference.measure(out, budget) : reference.screen(out, budget);
+        Measurement m = in_full ? reference.measure(out, budget) : reference.screen(out, budget);
         ++check.prefixes_measured;
         if (m.within) {
           lo = mid;
           at_lo.reset();
           at_lo.emplace(std::move(trial));
           best = std::move(out);
-          if (in_full) full = m;
+          if (in_full) full = std::move(m);
         } else {
           hi = mid;
         }
@@ -433,7 +429,7 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
     check.ms = elapsed_ms(t0);
     return result;
   }
-  if (full.within) full.bound = reference.tighter_bound(result.mesh, budget, full.bound);
+  if (full.within) full.bound = reference.tighter_bound(result.mesh, budget, full);
   check.within = full.within;
   check.certified = full.certified;
   check.sampled_abs = full.sampled;
