@@ -124,27 +124,36 @@ TriangleKey triangle_key(const SurfaceIndex& s, std::size_t t) {
   return key;
 }
 
-// A mesh's triangles and vertex positions as exact keys.
+// A mesh's triangles and vertex positions as exact keys: in order (per triangle, per vertex) and as sets.
 struct SurfaceKeys {
   explicit SurfaceKeys(const SurfaceIndex& s) {
     const std::size_t n = s.indices.size() / 3;
+    triangle_list.reserve(n);
     triangles.reserve(n);
-    for (std::size_t t = 0; t < n; ++t) triangles.insert(triangle_key(s, t));
+    for (std::size_t t = 0; t < n; ++t) {
+      triangle_list.push_back(triangle_key(s, t));
+      triangles.insert(triangle_list.back());
+    }
+    point_list.reserve(s.positions.size());
     points.reserve(s.positions.size());
-    for (const Vec3d& p : s.positions) points.insert(point_key(p));
+    for (const Vec3d& p : s.positions) {
+      point_list.push_back(point_key(p));
+      points.insert(point_list.back());
+    }
   }
+  std::vector<TriangleKey> triangle_list;
+  std::vector<PointKey> point_list;
   std::unordered_set<TriangleKey, KeyHash> triangles;
   std::unordered_set<PointKey, KeyHash> points;
 };
 
-// Sample points of a mesh not found exactly in `other`: points inside its triangles, then its vertices (those
-// of a triangle with finite corners). Inside a triangle: its centroid, and where `spacing` > 0 the points of a
-// grid of about that spacing (at most kMaxGrid steps per edge; the corners are the vertices) where the
-// triangle is longer than that. `on_other` flags
-// the triangles found (in triangle order).
+// Sample points of a mesh `s` (its keys `own`) not found exactly in `other`: points inside its triangles, then
+// its vertices (those of a triangle with finite corners). Inside a triangle: its centroid, and where `spacing`
+// > 0 the points of a grid of about that spacing (at most kMaxGrid steps per edge; the corners are the
+// vertices) where the triangle is longer than that. `on_other` flags the triangles found (in triangle order).
 constexpr int kMaxGrid = 6;
-std::vector<Vec3d> samples_not_in(const SurfaceIndex& s, const SurfaceKeys& other, std::vector<char>& on_other,
-                                  double spacing = 0.0) {
+std::vector<Vec3d> samples_not_in(const SurfaceIndex& s, const SurfaceKeys& own, const SurfaceKeys& other,
+                                  std::vector<char>& on_other, double spacing = 0.0) {
   std::vector<Vec3d> samples;
   const std::size_t n = s.indices.size() / 3;
   on_other.assign(n, 0);
@@ -156,7 +165,7 @@ std::vector<Vec3d> samples_not_in(const SurfaceIndex& s, const SurfaceKeys& othe
     const Vec3d g = (a + b + c) * (1.0 / 3.0);
     if (!finite3(g)) continue;
     for (std::size_t k = 0; k < 3; ++k) used[s.indices[3 * t + k]] = 1;
-    if (other.triangles.contains(triangle_key(s, t))) {
+    if (other.triangles.contains(own.triangle_list[t])) {
       on_other[t] = 1;
       continue;
     }
@@ -174,7 +183,7 @@ std::vector<Vec3d> samples_not_in(const SurfaceIndex& s, const SurfaceKeys& othe
     }
   }
   for (std::size_t v = 0; v < used.size(); ++v) {
-    if (used[v] && !other.points.contains(point_key(s.positions[v]))) samples.push_back(s.positions[v]);
+    if (used[v] && !other.points.contains(own.point_list[v])) samples.push_back(s.positions[v]);
   }
   return samples;
 }
@@ -196,8 +205,8 @@ class Reference {
     const SurfaceKeys lod_keys(lod);
     std::vector<char> unused;
     // The output's triangles are large and may bridge a concavity: sampled on a grid, not only at centroids.
-    const std::vector<Vec3d> forward = samples_not_in(lod, keys_, m.on_target, kGridSpacing * budget);
-    const std::vector<Vec3d> reverse = samples_not_in(index_, lod_keys, unused);
+    const std::vector<Vec3d> forward = samples_not_in(lod, lod_keys, keys_, m.on_target, kGridSpacing * budget);
+    const std::vector<Vec3d> reverse = samples_not_in(index_, keys_, lod_keys, unused);
     m.bound = std::numeric_limits<double>::infinity();
     if (index_.empty() || lod.empty()) {  // nothing to measure against: only nothing against nothing holds
       m.sampled = forward.empty() ? 0.0 : std::numeric_limits<double>::infinity();
