@@ -476,6 +476,61 @@ BvhHit TriangleBvh::closest_point_within(const Vec3d& p, double max_distance) co
   return search(p, start, BvhHit{}, work);
 }
 
+bool TriangleBvh::any_within(const Vec3d& p, double max_distance, std::uint32_t& hint, BvhWork& work) const {
+  if (empty() || !(max_distance >= 0)) return false;
+  const double limit_sq = max_distance * max_distance;
+  if (hint < slot_of_.size() && slot_of_[hint] != kInvalidIndex) {
+    if (measure(p, hint, work).distance_sq <= limit_sq) return true;
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t across = neighbor_[hint][k];
+      if (across != kInvalidIndex && measure(p, across, work).distance_sq <= limit_sq) {
+        hint = across;
+        return true;
+      }
+    }
+  }
+  // Boxes are opened up to a rounding slack beyond the limit, so that whether a triangle is found does not
+  // depend on the order of the descent.
+  const double slack = kTieFraction * std::max({scale_, std::abs(p[0]), std::abs(p[1]), std::abs(p[2])});
+  const double open_sq = (max_distance + slack) * (max_distance + slack);
+  std::uint32_t stack[kStackSize][2];
+  int top = 0;
+  if (box_dist_sq(root_.min, root_.max, p) <= open_sq) {
+    stack[top][0] = root_.index;
+    stack[top++][1] = root_.count;
+  }
+  while (top > 0) {
+    --top;
+    const std::uint32_t index = stack[top][0], count = stack[top][1];
+    if (count > 0) {
+      work.triangles += count;
+      for (std::uint32_t s = index; s < index + count; ++s) {
+        const std::array<Vec3d, 3>& t = slot_corners_[s];
+        if (dist_sq(p, closest_point_on_triangle(p, t[0], t[1], t[2]).point) <= limit_sq) {
+          hint = slot_triangle_[s];
+          return true;
+        }
+      }
+      continue;
+    }
+    ++work.nodes;
+    const BvhNode& n = nodes_[index];
+    const double d0 = box_dist_sq(n.min[0], n.max[0], p), d1 = box_dist_sq(n.min[1], n.max[1], p);
+    const int near = d0 <= d1 ? 0 : 1, far = 1 - near;
+    const double near_sq = near == 0 ? d0 : d1, far_sq = near == 0 ? d1 : d0;
+    if (far_sq <= open_sq) {
+      stack[top][0] = n.child[far];
+      stack[top++][1] = n.count[far];
+    }
+    if (near_sq <= open_sq) {
+      stack[top][0] = n.child[near];
+      stack[top++][1] = n.count[near];
+    }
+    assert(top <= kStackSize);
+  }
+  return false;
+}
+
 TriangleBvh make_triangle_bvh(const Mesh& mesh) {
   std::vector<Vec3d> positions;
   positions.reserve(mesh.vertex_count());

@@ -19,11 +19,13 @@
 #include <limits>
 #include <mutex>
 #include <optional>
+#include <span>
 #include <unordered_set>
 #include <utility>
 #include <vector>
 
 #include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 #include <tbb/task_arena.h>
 
@@ -37,15 +39,12 @@ namespace {
 // it refines down to the finer tolerance that decides.
 constexpr double kBoundTolerance = 0.1;
 constexpr double kFinestTolerance = 0.002;
-// Deciding whether a prefix holds, parts of the LOD whose bound is below this fraction of the budget need no
-// refinement: they cannot decide it. Flat parts lying on the input (CAD faces) have distance zero, and a
-// Lipschitz bound only reaches zero by splitting without end.
-constexpr double kDecisionFraction = 0.9;
-// The output's reported bound is refined further, down to this fraction of the budget.
-constexpr double kReportFraction = 0.5;
-// Closest-point queries allowed per output triangle (plus a base) when deciding a prefix and when refining
-// the reported bound: about what the evaluator spends on a LOD.
-constexpr std::size_t kDecisionQueries = 4, kReportQueries = 16, kBaseQueries = 50000;
+// Parts of the LOD whose bound is below this fraction of the budget need no refinement: they cannot decide
+// it, and the reported bound is close enough. Flat parts lying on the input (CAD faces) have distance zero,
+// and a Lipschitz bound only reaches zero by splitting without end.
+constexpr double kGoodEnough = 0.5;
+// Closest-point queries allowed per output triangle (plus a base) when bounding a prefix.
+constexpr std::size_t kQueriesPerTriangle = 16, kBaseQueries = 50000;
 // Output triangles are sampled on a grid of this spacing, in budgets (at most kMaxGrid steps per edge).
 constexpr double kGridSpacing = 4.0;
 // Searches deciding their steps by the screen before every step is measured in full.
@@ -147,11 +146,28 @@ struct SurfaceKeys {
   std::unordered_set<PointKey, KeyHash> points;
 };
 
-// Sample points of a mesh `s` (its keys `own`) not found exactly in `other`: points inside its triangles, then
-// its vertices (those of a triangle with finite corners). Inside a triangle: its centroid, and where `spacing`
-// > 0 the points of a grid of about that spacing (at most kMaxGrid steps per edge; the corners are the
-// vertices) where the triangle is longer than that. `on_other` flags the triangles found (in triangle order).
+// Calls f(p) for the points of a grid of about `spacing` inside triangle abc where it is longer than that (at
+// most kMaxGrid steps per edge; not the corners), until f returns false; false if it did.
 constexpr int kMaxGrid = 6;
+template <typename F>
+bool for_each_grid_point(const Vec3d& a, const Vec3d& b, const Vec3d& c, double spacing, F&& f) {
+  if (!(spacing > 0)) return true;
+  const double longest = std::sqrt(std::max({dot(b - a, b - a), dot(c - b, c - b), dot(a - c, a - c)}));
+  if (!(longest > spacing)) return true;  // small: its corners and centroid are close enough together
+  const int steps = static_cast<int>(std::min(std::ceil(longest / spacing), double{kMaxGrid}));
+  for (int i = 0; i <= steps; ++i) {
+    for (int j = 0; i + j <= steps; ++j) {
+      if (i == steps || j == steps || i + j == 0) continue;  // the corners
+      const double u = double(i) / steps, v = double(j) / steps;
+      if (!f(a + (b - a) * u + (c - a) * v)) return false;
+    }
+  }
+  return true;
+}
+
+// Sample points of a mesh `s` (its keys `own`) not found exactly in `other`: points inside its triangles, then
+// its vertices (those of a triangle with finite corners). Inside a triangle: its centroid and the grid of
+// `spacing` (for_each_grid_point). `on_other` flags the triangles found (in triangle order).
 std::vector<Vec3d> samples_not_in(const SurfaceIndex& s, const SurfaceKeys& own, const SurfaceKeys& other,
                                   std::vector<char>& on_other, double spacing = 0.0) {
   std::vector<Vec3d> samples;
@@ -170,17 +186,10 @@ std::vector<Vec3d> samples_not_in(const SurfaceIndex& s, const SurfaceKeys& own,
       continue;
     }
     samples.push_back(g);
-    if (!(spacing > 0)) continue;
-    const double longest = std::sqrt(std::max({dot(b - a, b - a), dot(c - b, c - b), dot(a - c, a - c)}));
-    if (!(longest > spacing)) continue;  // small: its corners and centroid are close enough together
-    const int steps = static_cast<int>(std::min(std::ceil(longest / spacing), double{kMaxGrid}));
-    for (int i = 0; i <= steps; ++i) {
-      for (int j = 0; i + j <= steps; ++j) {
-        if (i == steps || j == steps || i + j == 0) continue;  // the corners
-        const double u = double(i) / steps, v = double(j) / steps;
-        samples.push_back(a + (b - a) * u + (c - a) * v);
-      }
-    }
+    for_each_grid_point(a, b, c, spacing, [&](const Vec3d& p) {
+      samples.push_back(p);
+      return true;
+    });
   }
   for (std::size_t v = 0; v < used.size(); ++v) {
     if (used[v] && !other.points.contains(own.point_list[v])) samples.push_back(s.positions[v]);
@@ -198,8 +207,9 @@ class Reference {
   // Samples both ways, stopping at the first distance over the budget: output vertices and triangle centroids
   // → reference, reference vertices and triangle centroids → output, coarse passes of both first. Points the
   // output shares exactly with the reference are at distance 0 and skipped. Cheap, and decisive wherever the
-  // output fails.
-  Measurement screen(const Mesh& output, double budget) {
+  // output fails. With `decide_only`, each point asks only whether some triangle is within the budget (about
+  // one triangle per point where it is), and the largest distances are not measured (left at 0).
+  Measurement screen(const Mesh& output, double budget, bool decide_only = false) {
     Measurement m;
     const SurfaceIndex lod(output);
     const SurfaceKeys lod_keys(lod);
@@ -218,22 +228,25 @@ class Reference {
     // Reference points that were over the budget in an earlier measurement (thin parts collapsed away) usually
     // are again: try them first. Which ones were recorded depends on the threads; only the time does.
     for (const Vec3d& p : suspects_) {
-      if (lod.bvh.closest_point(p).distance() > budget) {
+      if (std::uint32_t hint = kInvalidIndex; !lod.bvh.any_within(p, budget, hint)) {
         over.store(true);
         break;
       }
     }
+    constexpr double kOver = std::numeric_limits<double>::infinity();
+    auto distance_to = [&](const TriangleBvh& bvh, const Vec3d& p, std::uint32_t& hint) {
+      if (decide_only) return bvh.any_within(p, budget, hint) ? 0.0 : kOver;
+      const BvhHit h = bvh.closest_point(p, hint);
+      hint = h.triangle;
+      return h.distance();
+    };
     for (std::size_t pass = 0; pass < std::size(kPassStrides) && !over.load(); ++pass) {
       m.sampled = std::max(m.sampled, pass_max(arena_, pass, forward.size(), budget, over, [&](std::size_t i, std::uint32_t& hint) {
-                             const BvhHit h = index_.bvh.closest_point(forward[i], hint);
-                             hint = h.triangle;
-                             return h.distance();
+                             return distance_to(index_.bvh, forward[i], hint);
                            }));
       if (over.load()) break;
       m.reverse = std::max(m.reverse, pass_max(arena_, pass, reverse.size(), budget, over, [&](std::size_t i, std::uint32_t& hint) {
-                             const BvhHit h = lod.bvh.closest_point(reverse[i], hint);
-                             hint = h.triangle;
-                             const double d = h.distance();
+                             const double d = distance_to(lod.bvh, reverse[i], hint);
                              if (d > budget) suspect(reverse[i]);
                              return d;
                            }));
@@ -245,16 +258,17 @@ class Reference {
   }
 
   // screen(), then where it passes the certified bound output → reference, refined until it decides the
-  // budget (as far as its query allowance goes): the bound decides, or where it could not be refined far
-  // enough, the largest distance it measured.
+  // budget (as far as its query allowance goes) and down to kGoodEnough of it, which is also the bound
+  // reported: the bound decides, or where it could not be refined far enough, the largest distance it
+  // measured.
   Measurement measure(const Mesh& output, double budget) {
     Measurement m = screen(output, budget);
     if (!m.within) return m;
     const std::size_t measured = static_cast<std::size_t>(std::count(m.on_target.begin(), m.on_target.end(), 0));
     DistanceBoundOptions options{.tolerance = kBoundTolerance,
-                                 .good_enough = kDecisionFraction * budget,
+                                 .good_enough = kGoodEnough * budget,
                                  .give_up_above = budget,
-                                 .max_queries = kDecisionQueries * measured + kBaseQueries,
+                                 .max_queries = kQueriesPerTriangle * measured + kBaseQueries,
                                  .threads = threads_,
                                  .on_target = &m.on_target};
     DistanceBound b = distance_bound(output, index_, options);
@@ -272,20 +286,30 @@ class Reference {
     return m;
   }
 
-  // A tighter bound on an output that measure() found within (`known`: never looser than its bound), for the
-  // report.
-  double tighter_bound(const Mesh& output, double budget, const Measurement& known) {
-    const std::vector<char>& on_target = known.on_target;
-    const std::size_t measured = static_cast<std::size_t>(std::count(on_target.begin(), on_target.end(), 0));
-    const DistanceBound b = distance_bound(output, index_,
-                                           {.tolerance = kBoundTolerance,
-                                            .good_enough = kReportFraction * budget,
-                                            .max_queries = kReportQueries * measured + kBaseQueries,
-                                            .threads = threads_,
-                                            .on_target = &on_target});
-    return std::min(known.bound, b.upper);
-  }
 
+
+  const TriangleBvh& bvh() const { return index_.bvh; }
+  tbb::task_arena& arena() { return arena_; }
+  // The reference's sample points for the reverse direction, the same as screen() takes: the vertices of its
+  // triangles with finite corners, then their centroids.
+  const std::vector<Vec3d>& samples() {
+    if (samples_.empty()) {
+      std::vector<char> used(index_.positions.size(), 0);
+      std::vector<Vec3d> centroids;
+      for (std::size_t t = 0; 3 * t < index_.indices.size(); ++t) {
+        const std::uint32_t* c = &index_.indices[3 * t];
+        const Vec3d g = (index_.positions[c[0]] + index_.positions[c[1]] + index_.positions[c[2]]) * (1.0 / 3.0);
+        if (!finite3(g)) continue;
+        used[c[0]] = used[c[1]] = used[c[2]] = 1;
+        centroids.push_back(g);
+      }
+      for (std::size_t v = 0; v < used.size(); ++v) {
+        if (used[v]) samples_.push_back(index_.positions[v]);
+      }
+      samples_.insert(samples_.end(), centroids.begin(), centroids.end());
+    }
+    return samples_;
+  }
 
  private:
   void suspect(const Vec3d& p) {
@@ -298,9 +322,166 @@ class Reference {
   SurfaceIndex index_;
   SurfaceKeys keys_;
   std::vector<Vec3d> suspects_;
+  std::vector<Vec3d> samples_;
   std::mutex suspects_mutex_;
   tbb::task_arena arena_;
   unsigned threads_;
+};
+
+// Screens the prefixes of one bisection incrementally. A prefix that held leaves, per reference sample, a face
+// slot of the working mesh within the budget of it (its witness); all its faces' samples were within. A longer
+// prefix then measures only what its extra collapses touched: the samples of the faces they changed (any
+// corner collapsed or moved), and the reference samples whose witness they changed or removed. The decision
+// is the decide-only screen's, at a fraction of its work; which witness a sample keeps may depend on the
+// threads, the decision does not.
+class PrefixScreen {
+ public:
+  PrefixScreen(Reference& reference, double budget) : reference_(reference), budget_(budget) {}
+
+  // The search's start (before any record): measured in full. False if it does not hold.
+  bool start(const CollapseMesh& cm, const Mesh& out) {
+    const std::vector<std::uint32_t> slots = alive_slots(cm);
+    const SurfaceIndex lod(out);
+    std::vector<std::uint32_t> all(slots.size());
+    for (std::size_t i = 0; i < all.size(); ++i) all[i] = static_cast<std::uint32_t>(i);
+    if (!forward_within(lod, all)) return false;
+    const std::vector<Vec3d>& points = reference_.samples();
+    witness_.assign(points.size(), kInvalidIndex);
+    std::vector<std::uint32_t> everyone(points.size());
+    for (std::size_t i = 0; i < everyone.size(); ++i) everyone[i] = static_cast<std::uint32_t>(i);
+    std::vector<std::uint32_t> found;
+    if (!reverse_within(lod.bvh, everyone, found)) return false;
+    for (std::size_t k = 0; k < everyone.size(); ++k) witness_[everyone[k]] = slots[found[k]];
+    return true;
+  }
+
+  // Whether `trial` (the accepted prefix plus `records`, output `out`) holds; accept() then makes it the
+  // accepted prefix.
+  bool decide(const CollapseMesh& trial, const Mesh& out, std::span<const CollapseRecord> records) {
+    pending_.clear();
+    touched_.assign(trial.vertex_count(), 0);
+    for (const CollapseRecord& r : records) touched_[r.u] = touched_[r.v] = 1;
+    auto changed_slot = [&](std::uint32_t f) {
+      return !trial.face_alive(f) || touched_[trial.face_vertex(f, 0)] || touched_[trial.face_vertex(f, 1)] ||
+             touched_[trial.face_vertex(f, 2)];
+    };
+    // Output triangle i is the i-th alive slot; the changed ones, as output triangles.
+    const std::vector<std::uint32_t> slots = alive_slots(trial);
+    std::vector<std::uint32_t> changed;
+    for (std::size_t i = 0; i < slots.size(); ++i) {
+      if (changed_slot(slots[i])) changed.push_back(static_cast<std::uint32_t>(i));
+    }
+    SurfaceIndex lod;
+    lod.positions.reserve(out.positions.size());
+    for (const Vec3f& p : out.positions) lod.positions.push_back(to_double(p));
+    lod.indices = triangle_vertex_indices(out);
+    if (!forward_within(lod, changed)) return false;
+    // Reference samples whose witness changed: first against the changed faces alone (most find one there),
+    // then the rest against the whole output.
+    std::vector<std::uint32_t> lost;
+    for (std::size_t k = 0; k < witness_.size(); ++k) {
+      if (witness_[k] == kInvalidIndex || changed_slot(witness_[k])) lost.push_back(static_cast<std::uint32_t>(k));
+    }
+    if (lost.empty()) return true;
+    std::vector<std::uint32_t> changed_indices;
+    changed_indices.reserve(3 * changed.size());
+    for (const std::uint32_t t : changed) {
+      for (int k = 0; k < 3; ++k) changed_indices.push_back(lod.indices[3 * t + k]);
+    }
+    const TriangleBvh near(lod.positions, changed_indices);
+    std::vector<std::uint32_t> found;
+    std::vector<std::uint32_t> rest;
+    search(near, lost, found, &rest);
+    for (std::size_t k = 0; k < lost.size(); ++k) {
+      if (found[k] != kInvalidIndex) pending_.push_back({lost[k], slots[changed[found[k]]]});
+    }
+    if (!rest.empty()) {
+      const TriangleBvh whole(lod.positions, lod.indices);
+      if (!reverse_within(whole, rest, found)) return false;
+      for (std::size_t k = 0; k < rest.size(); ++k) pending_.push_back({rest[k], slots[found[k]]});
+    }
+    return true;
+  }
+
+  void accept() {
+    for (const auto& [k, slot] : pending_) witness_[k] = slot;
+    pending_.clear();
+  }
+
+ private:
+  static std::vector<std::uint32_t> alive_slots(const CollapseMesh& cm) {
+    std::vector<std::uint32_t> slots;
+    slots.reserve(cm.alive_faces());
+    for (std::size_t f = 0; f < cm.face_slots(); ++f) {
+      if (cm.face_alive(static_cast<std::uint32_t>(f))) slots.push_back(static_cast<std::uint32_t>(f));
+    }
+    return slots;
+  }
+
+  // Whether every sample of the output triangles `triangles` (corners, centroid, grid) is within the budget of
+  // the reference.
+  bool forward_within(const SurfaceIndex& lod, const std::vector<std::uint32_t>& triangles) {
+    const TriangleBvh& target = reference_.bvh();
+    const double spacing = kGridSpacing * budget_;
+    std::atomic<bool> over{false};
+    reference_.arena().execute([&] {
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, triangles.size(), 256), [&](const tbb::blocked_range<std::size_t>& r) {
+        std::uint32_t hint = kInvalidIndex;
+        auto within = [&](const Vec3d& p) { return target.any_within(p, budget_, hint); };
+        for (std::size_t k = r.begin(); k < r.end() && !over.load(std::memory_order_relaxed); ++k) {
+          const std::uint32_t* c = &lod.indices[3 * std::size_t{triangles[k]}];
+          const Vec3d& a = lod.positions[c[0]];
+          const Vec3d& b = lod.positions[c[1]];
+          const Vec3d& d = lod.positions[c[2]];
+          const Vec3d g = (a + b + d) * (1.0 / 3.0);
+          if (!finite3(g)) continue;
+          if (!(within(g) && within(a) && within(b) && within(d) && for_each_grid_point(a, b, d, spacing, within))) {
+            over.store(true, std::memory_order_relaxed);
+          }
+        }
+      });
+    });
+    return !over.load();
+  }
+
+  // For each reference sample points[who[k]]: a triangle of `bvh` within the budget in found[k] (kInvalidIndex
+  // if none). Without `rest`, stops at the first one with none and returns false; with it, those are listed
+  // there instead.
+  bool search(const TriangleBvh& bvh, const std::vector<std::uint32_t>& who, std::vector<std::uint32_t>& found,
+              std::vector<std::uint32_t>* rest) {
+    const std::vector<Vec3d>& points = reference_.samples();
+    found.assign(who.size(), kInvalidIndex);
+    std::atomic<bool> over{false};
+    reference_.arena().execute([&] {
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, who.size(), 1024), [&](const tbb::blocked_range<std::size_t>& r) {
+        std::uint32_t hint = kInvalidIndex;
+        for (std::size_t k = r.begin(); k < r.end(); ++k) {
+          if (over.load(std::memory_order_relaxed)) return;
+          if (bvh.any_within(points[who[k]], budget_, hint)) {
+            found[k] = hint;
+          } else if (rest == nullptr) {
+            over.store(true, std::memory_order_relaxed);
+          }
+        }
+      });
+    });
+    if (rest != nullptr) {
+      for (std::size_t k = 0; k < who.size(); ++k) {
+        if (found[k] == kInvalidIndex) rest->push_back(who[k]);
+      }
+    }
+    return !over.load();
+  }
+
+  bool reverse_within(const TriangleBvh& bvh, const std::vector<std::uint32_t>& who, std::vector<std::uint32_t>& found) {
+    return search(bvh, who, found, nullptr);
+  }
+
+  Reference& reference_;
+  double budget_;
+  std::vector<std::uint32_t> witness_;                        // per reference sample: a face slot
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pending_;  // the trial's new witnesses
+  std::vector<char> touched_;
 };
 
 }  // namespace
@@ -321,7 +502,7 @@ BudgetCheck measure_budget(const Mesh& output, const Mesh& reference_mesh, doubl
 }
 
 SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, const SimplifyOptions& options,
-                                 const CollapsePolicies& policies) {
+                                 const CollapsePolicies& policies, bool incremental_screens) {
   std::vector<CollapseRecord> log;
   SimplifyResult result = engine(triangles, options, policies, &log);
   // Stopped: the engine's output as it is, unmeasured (each measurement is a pass over both surfaces).
@@ -372,9 +553,11 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
       return true;
     };
     bool stopped = false;
+    PrefixScreen prefix(reference, budget);  // screens a search's steps incrementally where its start holds
     for (int attempt = 0;; ++attempt) {
       const bool in_full = attempt >= kScreenedSearches;
       if (!at_lo) at_lo.emplace(triangles, replay_options, parallel);
+      const bool incremental = incremental_screens && !in_full && prefix.start(*at_lo, at_lo->output());
       while (hi - lo > resolution()) {
         if (options.stop.requested()) {  // one poll per prefix measured
           stopped = true;
@@ -387,9 +570,18 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
           continue;
         }
         Mesh out = trial.output();
-        Measurement m = in_full ? reference.measure(out, budget) : reference.screen(out, budget);
+        Measurement m;
+        if (in_full) {
+          m = reference.measure(out, budget);
+        } else if (incremental) {
+          m.within = prefix.decide(trial, out, std::span(log).subspan(lo, mid - lo));
+          ++check.prefixes_screened_incrementally;
+        } else {
+          m = reference.screen(out, budget, true);
+        }
         ++check.prefixes_measured;
         if (m.within) {
+          if (incremental) prefix.accept();
           lo = mid;
           at_lo.reset();
           at_lo.emplace(std::move(trial));
@@ -438,7 +630,7 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
     check.ms = elapsed_ms(t0);
     return result;
   }
-  if (full.within) full.bound = reference.tighter_bound(result.mesh, budget, full);
+
   check.within = full.within;
   check.certified = full.certified;
   check.sampled_abs = full.sampled;

@@ -34,8 +34,10 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
 // reference and backs off along the log where it exceeds the budget (budget.cpp).
 using LoggedEngine = SimplifyResult (*)(const Mesh&, const SimplifyOptions&, const CollapsePolicies&,
                                         std::vector<CollapseRecord>*);
+// `incremental` screens the bisection's steps by what each changed (the default); off, each step is screened
+// in full: the same decisions at more work, for tests.
 SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, const SimplifyOptions& options,
-                                 const CollapsePolicies& policies);
+                                 const CollapsePolicies& policies, bool incremental = true);
 // The same measurement of one output (no back-off).
 BudgetCheck measure_budget(const Mesh& output, const Mesh& reference, double budget, unsigned threads);
 

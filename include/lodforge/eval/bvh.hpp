@@ -95,6 +95,15 @@ class TriangleBvh {
   BvhHit closest_point(const Vec3d& p, std::uint32_t hint, BvhWork& work) const;
   // The closest point strictly closer than `max_distance`, or no hit. Cheap when nothing is near.
   BvhHit closest_point_within(const Vec3d& p, double max_distance) const;
+  // Whether some triangle lies within `max_distance` of p (its distance as closest_point measures it).
+  // Triangle `hint` and its edge neighbours are tried first, then the descent stops at the first triangle
+  // within; `hint` becomes the triangle found. The answer depends only on the tree, never on the hint, and
+  // costs about one triangle where a coherent stream of queries all pass.
+  bool any_within(const Vec3d& p, double max_distance, std::uint32_t& hint, BvhWork& work) const;
+  bool any_within(const Vec3d& p, double max_distance, std::uint32_t& hint) const {
+    BvhWork work;
+    return any_within(p, max_distance, hint, work);
+  }
 
   // Corners of triangle t (t < triangle_count()) as given.
   std::array<Vec3d, 3> triangle(std::uint32_t t) const;

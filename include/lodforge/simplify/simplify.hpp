@@ -217,6 +217,7 @@ struct BudgetCheck {
   double reverse_abs = 0;      // sampled maximum, reference → output
   std::size_t collapses_undone = 0;  // collapses of the engine's run left out to meet the budget
   std::size_t prefixes_measured = 0;
+  std::size_t prefixes_screened_incrementally = 0;  // of those: measured only where their collapses reached
   bool backed_off() const { return collapses_undone > 0; }
   double ms = 0;               // time spent verifying and backing off
 };

@@ -204,6 +204,59 @@ TEST(TriangleBvh, HintedQueriesOnConnectedMeshesEqualBruteForce) {
   }
 }
 
+// any_within answers whether the brute-force distance is within the limit, whatever the hint (none, a far
+// triangle, the previous answer), and the hint it leaves is a triangle within the limit.
+TEST(TriangleBvh, AnyWithinAgreesWithBruteForceWhateverTheHint) {
+  const Soup soup = random_soup(1200);
+  const TriangleBvh bvh(soup.positions, soup.indices);
+  std::uint64_t key = 1u << 21;
+  std::uint32_t stream_hint = kInvalidIndex;
+  int inside = 0, outside = 0;
+  for (int q = 0; q < 800; ++q) {
+    const Vec3d p = v3(uniform(key, -0.2, 1.2), uniform(key + 1, -0.2, 1.2), uniform(key + 2, -0.2, 1.2));
+    key += 3;
+    const double d = brute_force(soup, p).distance();
+    // Limits on both sides of the distance, close to it and far from it.
+    for (const double limit : {0.5 * d, d * (1 - 1e-9), d * (1 + 1e-9), 2.0 * d + 0.01}) {
+      const bool want = d <= limit;
+      for (std::uint32_t hint : {kInvalidIndex, static_cast<std::uint32_t>((q * 53) % 1200), stream_hint}) {
+        const std::uint32_t given = hint;
+        EXPECT_EQ(bvh.any_within(p, limit, hint), want) << "query " << q << " limit/d " << limit / d;
+        if (want) {
+          const std::array<Vec3d, 3> t = bvh.triangle(hint);
+          const Vec3d e = closest_point_on_triangle(p, t[0], t[1], t[2]).point - p;
+          EXPECT_LE(std::sqrt(dot(e, e)), limit);
+          stream_hint = hint;
+        } else {
+          EXPECT_EQ(hint, given) << "a query that finds nothing leaves the hint as it was";
+        }
+      }
+      (want ? inside : outside) += 1;
+    }
+  }
+  EXPECT_GT(inside, 1000);
+  EXPECT_GT(outside, 1000);
+  std::uint32_t hint = kInvalidIndex;
+  EXPECT_FALSE(TriangleBvh().any_within(v3(0, 0, 0), 1.0, hint));
+}
+
+// A coherent stream of queries that all pass costs about one triangle each: the hint answers.
+TEST(TriangleBvh, AnyWithinOnACoherentStreamTestsAboutOneTrianglePerQuery) {
+  const Mesh mesh = testing::make_uv_sphere(64, 96);
+  std::vector<Vec3d> positions;
+  for (const Vec3f& p : mesh.positions) positions.push_back(to_double(p));
+  const TriangleBvh bvh(positions, triangle_vertex_indices(mesh));
+  BvhWork work;
+  std::uint32_t hint = kInvalidIndex;
+  std::size_t queries = 0;
+  for (std::uint32_t t = 0; t < bvh.triangle_count(); ++t) {
+    const std::array<Vec3d, 3> c = bvh.triangle(t);
+    ASSERT_TRUE(bvh.any_within((c[0] + c[1] + c[2]) * (1.0 / 3.0), 1e-3, hint, work));
+    ++queries;
+  }
+  EXPECT_LT(double(work.triangles) / queries, 3.0);
+}
+
 TEST(TriangleBvh, WorkCountsOpenedNodesAndTestedTriangles) {
   const std::vector<Vec3d> positions = {v3(0, 0, 0), v3(1, 0, 0), v3(0, 1, 0)};
   const std::vector<std::uint32_t> indices = {0, 1, 2};

@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "engines.hpp"
 #include "lodforge/eval/eval.hpp"
 #include "lodforge/simplify/policies.hpp"
 #include "lodforge/simplify/simplify.hpp"
@@ -71,6 +72,32 @@ TEST(ErrorBudget, BackOffIsTheSameOnAnyThreadCountAndForBothTriangleEngines) {
     EXPECT_EQ(a.budget.bound_abs, b.budget.bound_abs);
     EXPECT_TRUE(a.budget.within);
     EXPECT_LE(evaluate(grid, a.mesh).hausdorff_rel(), 0.003 * (1 + kSamplingTolerance));
+  }
+}
+
+// The bisection's steps screened by what their collapses changed decide exactly as screening each step in
+// full: the same prefixes measured, the same output, on a first LOD and on a chain's next one.
+TEST(ErrorBudget, IncrementalScreensDecideLikeFullScreens) {
+  const Mesh sphere = make_bumpy_sphere(40, 60);
+  const Mesh grid = make_bumpy_grid(40);
+  const SimplifyResult first = simplify(sphere, {.target_ratio = 0.001, .max_error_rel = 0.002});
+  struct Case {
+    const Mesh* input;
+    const Mesh* reference;
+    double budget;
+  };
+  for (const Case& c : {Case{&sphere, nullptr, 0.001}, Case{&sphere, nullptr, 0.01}, Case{&grid, nullptr, 0.003},
+                        Case{&first.mesh, &sphere, 0.008}}) {
+    SimplifyOptions o{.target_ratio = 0.001, .max_error_rel = c.budget, .threads = 2};
+    o.budget_reference = c.reference;
+    const SimplifyResult incremental = collapse::run_within_budget(collapse::run_edge_collapse, *c.input, o, {}, true);
+    const SimplifyResult full = collapse::run_within_budget(collapse::run_edge_collapse, *c.input, o, {}, false);
+    ASSERT_GT(incremental.budget.collapses_undone, 0u) << c.budget << ": the case must back off";
+    EXPECT_GT(incremental.budget.prefixes_screened_incrementally, 0u) << c.budget;
+    EXPECT_EQ(full.budget.prefixes_screened_incrementally, 0u);
+    EXPECT_EQ(incremental.budget.prefixes_measured, full.budget.prefixes_measured) << c.budget;
+    EXPECT_EQ(incremental.mesh, full.mesh) << c.budget;
+    EXPECT_TRUE(incremental.budget.within) << c.budget;
   }
 }
 
