@@ -857,6 +857,33 @@ void CollapseMesh::reserve(Check& c) {
   }
 }
 
+std::size_t CollapseMesh::list_room(const Check& c) const {
+  return std::size_t{size_[c.victim]} + size_[c.survivor] + kListSlack;
+}
+
+// Packs the live face lists to the front of the pool, in pool order, each to its size (a list that grows
+// later moves to the end again). Contents and order of every list are unchanged, so nothing else notices.
+void CollapseMesh::make_room(std::size_t entries) {
+  if (pool_.size() + entries <= pool_.capacity()) return;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> lists;  // (begin, vertex)
+  for (std::uint32_t v = 0; v < size_.size(); ++v) {
+    if (size_[v] > 0) {
+      lists.emplace_back(begin_[v], v);
+    } else {
+      capacity_[v] = 0;  // dead or bare: never gets faces again
+    }
+  }
+  std::sort(lists.begin(), lists.end());
+  std::uint32_t out = 0;
+  for (const auto& [begin, v] : lists) {
+    std::copy(pool_.begin() + begin, pool_.begin() + begin + size_[v], pool_.begin() + out);  // out <= begin
+    begin_[v] = out;
+    capacity_[v] = size_[v];
+    out += size_[v];
+  }
+  pool_.resize(out);
+}
+
 void CollapseMesh::apply(const Check& c, const Vec3d& x, Scratch& s) {
   const std::uint32_t a = c.victim, b = c.survivor, k = c.edge_face_count;
   for (std::uint32_t w : {a, b}) {
@@ -953,6 +980,7 @@ void CollapseMesh::commit(Check c, const Vec3d& x, Scratch& s) {
     const std::array<double, 2> d2 = far_distances(c.victim, c.survivor, x);
     far = d2[0] >= d2[1] ? far_[c.victim] : far_[c.survivor];
   }
+  make_room(list_room(c));
   reserve(c);
   apply(c, x, s);
   if (!far_.empty()) far_[c.survivor] = far;
