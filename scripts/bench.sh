@@ -33,14 +33,19 @@
 #   --meshopt-steps N        bisection steps on meshopt's target count (default 12)
 #   --oracle-max-budget F    oracle and meshopt only for budgets up to F (default 0.01)
 #
-# lodforge_bench_simplify (lodforge vs meshoptimizer vs OpenMesh Decimater: speed, peak memory, quality):
+# lodforge_bench_simplify (lodforge vs meshoptimizer vs OpenMesh Decimater: speed, peak memory, quality; lodforge-mc
+# is the multiple_choice engine; meshes of 1M triangles and more also run two lodforge-1t processes at once, the
+# machine's two-thread ceiling):
 #   --quick                  fast subset (bunny, dragon, buddha, lucy; ratios 0.1,0.02,0.01; 500k generated mesh;
 #                            300k eval samples; 1 repetition; OpenMesh only up to 150k triangles)
 #   --input DIR              folder of meshes (default ../shared/corpus/scanned)
 #   --mesh FILE              run these files instead (repeatable)
 #   --ratios 0.5,0.1,...     target ratios (default 0.5,0.1,0.02,0.01)
-#   --methods a,b            subset of lodforge-1t,lodforge-all,meshopt,openmesh
+#   --methods a,b            subset of lodforge-1t,lodforge-all,lodforge-mc,meshopt,openmesh
 #   --no-generated           skip the generated ~2M-triangle torus (--generated-triangles N to resize it)
+#   --no-plate               skip the generated flat CAD-like plate (--plate-triangles N, default 400k; 200k quick)
+#   --terrain                add the generated 16.8M-triangle fBm terrain at 1% (minutes; --terrain-side N)
+#   --no-ceiling             skip the two-process runs
 #   --eval-samples N         area samples per direction for the quality evaluation (default 1000000); --no-eval
 #   --reps N, --rep-budget S best of up to N repetitions, fewer once they add up to S seconds (default 3, 1.0)
 #   --openmesh-max N         skip the (slow) Decimater on meshes above N triangles (default 1000000)

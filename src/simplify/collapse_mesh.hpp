@@ -4,7 +4,8 @@
 // evaluation, topology checks, commit, output) and seam_rules.cpp (seams, attributes, UVs, skin).
 //
 // The working mesh is a triangle list with per-vertex face lists (CSR-like pool; a list is rewritten in place
-// or moved to the end of the pool when a collapse makes it grow), per-vertex quadrics and positions in double,
+// or moved to the end of the pool when a collapse makes it grow; the lists are packed to the front when the
+// pool's reserve runs out, instead of reallocating it), per-vertex quadrics and positions in double,
 // normalised to the unit cube. Vertex and wedge ids are those of the input mesh throughout; only the output is
 // compacted.
 //
@@ -231,6 +232,11 @@ class CollapseMesh {
   // calls for collapses with disjoint closed neighbourhoods may run concurrently. commit() does both.
   void reserve(Check& c);
   void apply(const Check& c, const Vec3d& x, Scratch& scratch);
+  // The most pool entries reserve(c) appends. make_room(n), called before a series of reserve() calls whose
+  // list_room() add up to n, packs the face lists when the pool lacks that room, so that the pool does not
+  // reallocate (twice its size, and a copy, at the peak).
+  std::size_t list_room(const Check& c) const;
+  void make_room(std::size_t entries);
   void commit(Check c, const Vec3d& x, Scratch& scratch);
   // Squared distances of the input points u and v track (far_) to the fan that collapsing (u, v) to x leaves.
   std::array<double, 2> far_distances(std::uint32_t u, std::uint32_t v, const Vec3d& x) const;

@@ -276,6 +276,11 @@ class GreedyEngine {
     committed_.clear();
     ring_first_.clear();
     std::uint32_t total = 0;
+    std::size_t room = 0;
+    for (std::size_t i = 0; i < ns; ++i) {
+      if (evals_[i].error <= budget2_ && checks_[i].ok()) room += cm_.list_room(checks_[i]);
+    }
+    cm_.make_room(room);
     for (std::size_t i = 0; i < ns; ++i) {
       if (evals_[i].error > budget2_) {
         over_budget_ = true;  // not parked: its cost only changes when an endpoint does

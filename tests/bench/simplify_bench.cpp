@@ -1,6 +1,9 @@
 // lodforge_bench_simplify: lodforge's simplifier against its peers, meshoptimizer (meshopt_simplify) and the
-// OpenMesh Decimater (ModQuadricT + ModNormalFlippingT), on the scanned corpus and a generated ~2M-triangle mesh,
-// at several ratios. Per run: output triangles, time, input triangles per second, peak memory per input triangle
+// OpenMesh Decimater (ModQuadricT + ModNormalFlippingT), on the scanned corpus, a generated ~2M-triangle mesh and a
+// generated flat CAD-like plate (and, with --terrain, a generated 16.8M-triangle fBm terrain at 1%), at several
+// ratios; lodforge's multiple_choice engine (lodforge-mc) against its default engine. Meshes of 1M triangles and
+// more also run two lodforge-1t processes at once: the two-thread ceiling of the machine, printed beside
+// lodforge's own two-thread scaling. Per run: output triangles, time, input triangles per second, peak memory per input triangle
 // and Metro-style quality from lodforge::evaluate. Prints a table, writes the same as JSON, and checks the
 // performance contract (../shared/DESIGN.md, "Performance contract") target by target: MET / NOT MET.
 //
@@ -47,6 +50,7 @@
 #include <set>
 #include <string>
 #include <thread>
+#include <unordered_map>
 #include <vector>
 
 #include "lodforge/core/mesh.hpp"
@@ -76,6 +80,17 @@ constexpr double kThreadSpeedup = 1.6;            // lodforge all threads >= 1.6
 // "Meshes >= 100k triangles": the corpus' "-100k" decimations (lucy has 99,970) and the generated mesh.
 constexpr std::size_t kLargeMeshTriangles = 99'000;
 constexpr double kMaxBytesPerTriangle = 250.0;  // peak memory during simplification per input triangle
+// Speed targets: 1 thread vs meshopt at 10% and 2% (geomean, scanned); no scanned mesh nor the flat plate below
+// kWorstSpeedVsMeshopt; the 16.8M terrain (--terrain) at 1% at least kTerrainSpeedVsMeshopt.
+constexpr double kSpeedRatios[] = {0.1, 0.02};
+constexpr double kWorstSpeedVsMeshopt = 0.5;
+constexpr double kTerrainSpeedVsMeshopt = 0.8;
+constexpr double kTerrainRatio = 0.01;
+// Meshes of 1M triangles and more: two threads vs one, and peak memory per input triangle.
+constexpr std::size_t kHugeMeshTriangles = 1'000'000;
+constexpr double kMaxBytesPerTriangleHuge = 150.0;
+// multiple_choice (the speed preset) vs the default engine, 1 thread, scanned, 10%: throughput and mean error.
+constexpr double kChoiceSpeedup = 2.0, kChoiceMeanError = 1.3;
 constexpr double kTargetCountRatio = 0.01;      // count target judged at 1% ...
 constexpr double kTargetCountTolerance = 0.01;  // ... reached within 1% on closed meshes
 // Stanford bunny reference (ALGORITHMS.md §10.5): mean error, fraction of the bbox diagonal.
@@ -87,8 +102,9 @@ constexpr double kBunnyMeshoptMeanAt1 = 0.00239, kBunnyMeshoptHausAt1 = 0.01338;
 // ---------------------------------------------------------------------------------------------------------------
 // Settings
 
-enum class Method { lodforge_1t, lodforge_all, meshopt, openmesh };
-constexpr Method kAllMethods[] = {Method::lodforge_1t, Method::lodforge_all, Method::meshopt, Method::openmesh};
+enum class Method { lodforge_1t, lodforge_all, lodforge_mc, meshopt, openmesh };
+constexpr Method kAllMethods[] = {Method::lodforge_1t, Method::lodforge_all, Method::lodforge_mc, Method::meshopt,
+                                  Method::openmesh};
 
 const char* method_name(Method m) {
   switch (m) {
@@ -96,6 +112,8 @@ const char* method_name(Method m) {
       return "lodforge-1t";
     case Method::lodforge_all:
       return "lodforge-all";
+    case Method::lodforge_mc:
+      return "lodforge-mc";
     case Method::meshopt:
       return "meshopt";
     case Method::openmesh:
@@ -119,6 +137,11 @@ struct Settings {
   std::vector<Method> methods{std::begin(kAllMethods), std::end(kAllMethods)};
   bool generated = true;
   std::size_t generated_triangles = 2'000'000;
+  bool plate = true;
+  std::size_t plate_triangles = 400'000;
+  bool terrain = false;
+  std::size_t terrain_side = 2'900;  // vertices per side: 2 x 2899² = 16.8M triangles
+  bool ceiling = true;  // two lodforge-1t processes at once on meshes of kHugeMeshTriangles and more
   std::size_t eval_samples = 1'000'000;  // per direction, §10.5 protocol
   bool eval = true;
   int max_reps = 3;
@@ -137,6 +160,8 @@ struct Input {
   std::string name;
   std::string path;      // empty for the generated mesh
   bool scanned = false;  // a file (--input folder or --mesh), not generated: counts in the corpus geometric means
+  bool plate = false;    // the generated flat CAD-like plate
+  std::vector<double> only_ratios;  // non-empty: runs at these ratios instead of the settings' (the terrain)
   Mesh mesh;             // positions + triangles only, one wedge per vertex
   std::vector<std::uint32_t> indices;  // 3 vertex ids per triangle (the same triangles as `mesh`)
   std::size_t boundary_edges = 0, nonmanifold_edges = 0;
@@ -200,6 +225,12 @@ Input load_input(const fs::path& path) {
   return in;
 }
 
+std::string fmt_millions(std::size_t n) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.1fM", static_cast<double>(n) / 1e6);
+  return b;
+}
+
 // A closed genus-1 surface with bumps at three scales: a torus whose tube radius is modulated by sines.
 // Deterministic; about `triangles` triangles in a (n_u x n_v) grid, n_u / n_v ~ major / tube radius.
 Input make_bumpy_torus(std::size_t triangles) {
@@ -239,6 +270,102 @@ Input make_bumpy_torus(std::size_t triangles) {
   Input in;
   in.name = "generated-torus-" + std::to_string((2 * n_u * n_v + 500'000) / 1'000'000) + "M";
   if (2 * n_u * n_v < 1'000'000) in.name = "generated-torus-" + std::to_string(2 * n_u * n_v / 1000) + "k";
+  in.indices = indices;
+  in.mesh = geometry_mesh(std::move(positions), std::move(indices));
+  return in;
+}
+
+// A flat CAD-like part: a closed rectangular plate (1 x 0.75 x 1/32) whose six faces are uniform grids, aligned
+// with the axes like most CAD exports, so that every edge inside a face costs exactly 0. About `triangles`
+// triangles.
+Input make_cad_plate(std::size_t triangles) {
+  // 2 (2 nx ny + 2 nx nz + 2 ny nz) triangles with ny = 3/4 nx, nz = nx / 32.
+  const double per_nx2 = 2.0 * (2.0 * 0.75 + 2.0 / 32.0 + 2.0 * 0.75 / 32.0);
+  const auto nx = std::max<std::size_t>(32, static_cast<std::size_t>(std::sqrt(static_cast<double>(triangles) / per_nx2)));
+  const std::size_t n[3] = {nx, std::max<std::size_t>(1, nx * 3 / 4), std::max<std::size_t>(1, nx / 32)};
+  const double h = 1.0 / static_cast<double>(nx);
+  std::vector<Vec3f> positions;
+  std::vector<std::uint32_t> indices;
+  std::unordered_map<std::uint64_t, std::uint32_t> ids;  // lattice point -> vertex (faces share their rims)
+  auto vertex = [&](std::size_t x, std::size_t y, std::size_t z) {
+    const std::uint64_t key = (std::uint64_t{x} << 42) | (std::uint64_t{y} << 21) | z;
+    const auto [it, fresh] = ids.try_emplace(key, static_cast<std::uint32_t>(positions.size()));
+    if (fresh) {
+      positions.push_back({{static_cast<float>(static_cast<double>(x) * h), static_cast<float>(static_cast<double>(y) * h),
+                            static_cast<float>(static_cast<double>(z) * h)}});
+    }
+    return it->second;
+  };
+  for (int axis = 0; axis < 3; ++axis) {
+    const int a = axis == 0 ? 1 : 0, b = axis == 2 ? 1 : 2;  // the face's grid axes, a < b
+    const bool cyclic = axis != 1;                             // (a, b, axis) right-handed: the grid's normal is +axis
+    for (const std::size_t level : {std::size_t{0}, n[axis]}) {
+      const bool flip = (level != 0) != cyclic;  // outward normals
+      for (std::size_t i = 0; i < n[a]; ++i) {
+        for (std::size_t j = 0; j < n[b]; ++j) {
+          std::uint32_t q[4];
+          const std::size_t corners[4][2] = {{i, j}, {i + 1, j}, {i + 1, j + 1}, {i, j + 1}};
+          for (int c = 0; c < 4; ++c) {
+            std::size_t p[3];
+            p[axis] = level;
+            p[a] = corners[c][0];
+            p[b] = corners[c][1];
+            q[c] = vertex(p[0], p[1], p[2]);
+          }
+          if (flip) std::swap(q[1], q[3]);
+          indices.insert(indices.end(), {q[0], q[1], q[2], q[0], q[2], q[3]});
+        }
+      }
+    }
+  }
+  Input in;
+  in.name = "generated-plate-" + std::to_string(indices.size() / 3 / 1000) + "k";
+  in.plate = true;
+  in.indices = indices;
+  in.mesh = geometry_mesh(std::move(positions), std::move(indices));
+  return in;
+}
+
+// A terrain: a height field of side x side vertices over the unit square, heights from 8 octaves of value noise
+// (fBm) with a fixed seed, 2 (side - 1)² triangles. Run at kTerrainRatio only.
+Input make_terrain(std::size_t side) {
+  auto hash = [](std::uint32_t x, std::uint32_t y, std::uint32_t octave) {
+    std::uint32_t v = x * 0x8da6b343u ^ y * 0xd8163841u ^ (octave + 12345u) * 0xcb1ab31fu;  // fixed seed 12345
+    v ^= v >> 15;
+    v *= 0x2c1b3c6du;
+    v ^= v >> 12;
+    v *= 0x297a2d39u;
+    v ^= v >> 15;
+    return static_cast<double>(v) / 4294967295.0;
+  };
+  auto smooth = [](double t) { return t * t * (3.0 - 2.0 * t); };
+  const double step = 1.0 / static_cast<double>(side - 1);
+  std::vector<Vec3f> positions(side * side);
+  tbb::parallel_for(std::size_t{0}, side, [&](std::size_t i) {
+    for (std::size_t j = 0; j < side; ++j) {
+      const double x = static_cast<double>(j) * step, y = static_cast<double>(i) * step;
+      double z = 0, amplitude = 0.08, frequency = 4.0;
+      for (std::uint32_t o = 0; o < 8; ++o, amplitude *= 0.5, frequency *= 2.0) {
+        const double fx = x * frequency, fy = y * frequency;
+        const auto x0 = static_cast<std::uint32_t>(fx), y0 = static_cast<std::uint32_t>(fy);
+        const double tx = smooth(fx - x0), ty = smooth(fy - y0);
+        const double a = hash(x0, y0, o), b = hash(x0 + 1, y0, o), c = hash(x0, y0 + 1, o), d = hash(x0 + 1, y0 + 1, o);
+        z += amplitude * ((a + (b - a) * tx) * (1 - ty) + (c + (d - c) * tx) * ty);
+      }
+      positions[i * side + j] = {{static_cast<float>(x), static_cast<float>(y), static_cast<float>(z)}};
+    }
+  });
+  std::vector<std::uint32_t> indices;
+  indices.reserve(6 * (side - 1) * (side - 1));
+  for (std::size_t i = 0; i + 1 < side; ++i) {
+    for (std::size_t j = 0; j + 1 < side; ++j) {
+      const auto a = static_cast<std::uint32_t>(i * side + j), b = a + 1, d = static_cast<std::uint32_t>(a + side), c = d + 1;
+      indices.insert(indices.end(), {a, b, c, a, c, d});
+    }
+  }
+  Input in;
+  in.name = "generated-terrain-" + fmt_millions(indices.size() / 3);
+  in.only_ratios = {kTerrainRatio};
   in.indices = indices;
   in.mesh = geometry_mesh(std::move(positions), std::move(indices));
   return in;
@@ -429,8 +556,10 @@ struct Geometry {
   std::vector<std::uint32_t> indices;
 };
 
-Geometry run_lodforge(Run& run, const Input& in, const Settings& s, unsigned threads) {
+Geometry run_lodforge(Run& run, const Input& in, const Settings& s, unsigned threads,
+                      lodforge::Engine engine = lodforge::Engine::edge_collapse) {
   lodforge::SimplifyOptions options;  // defaults otherwise: the engine as a user gets it
+  options.engine = engine;
   options.target_ratio = run.ratio;
   options.target_triangles = run.target;
   options.threads = threads;
@@ -550,6 +679,9 @@ Run execute(const Input& in, Method method, double ratio, std::size_t target, co
     case Method::lodforge_all:
       g = run_lodforge(run, in, s, 0);
       break;
+    case Method::lodforge_mc:
+      g = run_lodforge(run, in, s, 1, lodforge::Engine::multiple_choice);
+      break;
     case Method::meshopt:
       g = run_meshopt(run, in, s);
       break;
@@ -577,15 +709,23 @@ Run execute(const Input& in, Method method, double ratio, std::size_t target, co
   return run;
 }
 
-// Runs `execute` in a forked child and brings its Run back through a pipe.
-Run run_isolated(const Input& in, Method method, double ratio, std::size_t target, const Settings& s,
-                 std::uint64_t skip_eval_hash) {
-  Run failed = new_run(in, method, ratio, target);
+// A forked child running `execute`; its Run comes back through the pipe.
+struct Child {
+  pid_t pid = -1;
+  int fd = -1;
+  Run failed;  // what to report when the child cannot start or does not answer
+};
+
+Child spawn(const Input& in, Method method, double ratio, std::size_t target, const Settings& s,
+            std::uint64_t skip_eval_hash) {
+  Child child;
+  child.failed = new_run(in, method, ratio, target);
+  Run& failed = child.failed;
 
   int fds[2];
   if (pipe(fds) != 0) {
     failed.error = std::string("pipe: ") + std::strerror(errno);
-    return failed;
+    return child;
   }
   std::fflush(stdout);
   std::fflush(stderr);
@@ -594,7 +734,7 @@ Run run_isolated(const Input& in, Method method, double ratio, std::size_t targe
     failed.error = std::string("fork: ") + std::strerror(errno);
     close(fds[0]);
     close(fds[1]);
-    return failed;
+    return child;
   }
   if (pid == 0) {
     close(fds[0]);
@@ -621,6 +761,16 @@ Run run_isolated(const Input& in, Method method, double ratio, std::size_t targe
     _exit(0);  // no static destructors: the child shares nothing the parent must see flushed
   }
   close(fds[1]);
+  child.pid = pid;
+  child.fd = fds[0];
+  return child;
+}
+
+Run collect(Child& child, const Settings& s) {
+  Run failed = child.failed;
+  if (child.pid < 0) return failed;
+  const pid_t pid = child.pid;
+  int fds[1] = {child.fd};
   std::string text;
   char buf[65536];
   for (ssize_t n; (n = read(fds[0], buf, sizeof buf)) != 0;) {
@@ -646,6 +796,24 @@ Run run_isolated(const Input& in, Method method, double ratio, std::size_t targe
     failed.error = std::string("bad child report: ") + e.what();
     return failed;
   }
+}
+
+// Runs `execute` in a forked child and brings its Run back through a pipe.
+Run run_isolated(const Input& in, Method method, double ratio, std::size_t target, const Settings& s,
+                 std::uint64_t skip_eval_hash) {
+  Child child = spawn(in, method, ratio, target, s, skip_eval_hash);
+  return collect(child, s);
+}
+
+// Two lodforge-1t children at once, without evaluation: what two independent single-threaded processes get out
+// of the machine. Returns their mean time (NaN if either failed).
+double run_pair(const Input& in, double ratio, std::size_t target, const Settings& s) {
+  Settings quiet = s;
+  quiet.eval = false;
+  Child a = spawn(in, Method::lodforge_1t, ratio, target, quiet, 0);
+  Child b = spawn(in, Method::lodforge_1t, ratio, target, quiet, 0);
+  const Run ra = collect(a, quiet), rb = collect(b, quiet);
+  return ra.ok() && rb.ok() ? 0.5 * (ra.seconds + rb.seconds) : NAN;
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -697,9 +865,18 @@ double geomean(const std::vector<double>& v) {
   return std::exp(s / static_cast<double>(v.size()));
 }
 
+// Two lodforge-1t processes at once against one (meshes of kHugeMeshTriangles and more).
+struct Ceiling {
+  std::string mesh;
+  double ratio = 0;
+  double single_s = NAN, pair_s = NAN;  // one process alone; the mean of two at once
+  double speedup() const { return 2.0 * single_s / pair_s; }  // throughput of two processes over one
+};
+
 struct Results {
   std::vector<Input>* inputs;
   std::vector<Run> runs;
+  std::vector<Ceiling> ceilings;
 
   const Run* find(const std::string& mesh, Method m, double ratio) const {
     for (const Run& r : runs)
@@ -796,6 +973,79 @@ json summarize(const Results& res, const Settings& s, std::vector<Target>& targe
     add("all-threads / 1-thread speed at " + ratio_label(kThroughputRatio) + " (geomean, >=100k tris, " +
             std::to_string(std::thread::hardware_concurrency()) + " hw threads)",
         th.value, "%.2fx", ">= 1.60x", false, kThreadSpeedup, th.n);
+  }
+  // Speed against meshopt per ratio: the corpus' geometric mean, and the worst mesh (scanned or the flat plate).
+  for (double q : kSpeedRatios) {
+    const Ratio sp = mean_ratio(res, Method::lodforge_1t, Method::meshopt, q, speed, scanned);
+    add("1-thread speed / meshopt at " + ratio_label(q) + " (geomean, scanned)", sp.value, "%.2fx", ">= 1.00x", false,
+        kThroughputVsMeshopt, sp.n);
+    double worst = NAN;
+    std::string where;
+    std::size_t n = 0;
+    for (const Input& in : *res.inputs) {
+      if (!in.scanned && !in.plate) continue;
+      const Run* a = res.find(in.name, Method::lodforge_1t, q);
+      const Run* b = res.find(in.name, Method::meshopt, q);
+      if (!a || !b) continue;
+      const double x = a->tris_per_second() / b->tris_per_second();
+      if (!std::isfinite(x)) continue;
+      ++n;
+      if (!(x >= worst)) {
+        worst = x;
+        where = in.name;
+      }
+    }
+    add("1-thread speed / meshopt at " + ratio_label(q) + ", worst of scanned + plate" +
+            (where.empty() ? "" : " (" + where + ")"),
+        worst, "%.2fx", ">= 0.50x", false, kWorstSpeedVsMeshopt, n);
+  }
+  {
+    const auto terrain = [](const Input& in) { return !in.only_ratios.empty(); };
+    const Ratio t = mean_ratio(res, Method::lodforge_1t, Method::meshopt, kTerrainRatio, speed, terrain);
+    add("1-thread speed / meshopt, terrain at " + ratio_label(kTerrainRatio) + " (--terrain)", t.value, "%.2fx",
+        ">= 0.80x", false, kTerrainSpeedVsMeshopt, t.n);
+  }
+  {
+    // Two threads over one on meshes of 1M triangles and more, every ratio they ran at, beside the ceiling.
+    std::vector<double> scaling, ceiling;
+    for (const Input& in : *res.inputs) {
+      if (in.triangles() < kHugeMeshTriangles) continue;
+      for (double q : in.only_ratios.empty() ? s.ratios : in.only_ratios) {
+        const Run* a = res.find(in.name, Method::lodforge_all, q);
+        const Run* b = res.find(in.name, Method::lodforge_1t, q);
+        if (a && b && a->seconds > 0) scaling.push_back(b->seconds / a->seconds);
+      }
+    }
+    for (const Ceiling& c : res.ceilings) {
+      if (std::isfinite(c.speedup())) ceiling.push_back(c.speedup());
+    }
+    add("all-threads / 1-thread speed (geomean, >=1M tris; two 1-thread processes at once: " +
+            fmt("%.2fx", geomean(ceiling)) + ")",
+        geomean(scaling), "%.2fx", ">= 1.60x", false, kThreadSpeedup, scaling.size());
+  }
+  {
+    double worst = NAN;
+    std::string where;
+    std::size_t n = 0;
+    for (const Run& r : res.runs) {
+      if (!r.ok() || (r.method != Method::lodforge_1t && r.method != Method::lodforge_all)) continue;
+      if (r.triangles_in < kHugeMeshTriangles || !std::isfinite(r.bytes_per_triangle())) continue;
+      ++n;
+      if (!(r.bytes_per_triangle() <= worst)) {
+        worst = r.bytes_per_triangle();
+        where = r.mesh + " " + ratio_label(r.ratio) + " " + method_name(r.method);
+      }
+    }
+    add("peak memory, worst lodforge run on >=1M tris" + (where.empty() ? "" : " (" + where + ")"), worst,
+        "%.0f B/tri", "<= 150 B/tri", true, kMaxBytesPerTriangleHuge, n);
+  }
+  {
+    const Ratio sp = mean_ratio(res, Method::lodforge_mc, Method::lodforge_1t, kThroughputRatio, speed, scanned);
+    const Ratio m = mean_ratio(res, Method::lodforge_mc, Method::lodforge_1t, kThroughputRatio, mean, scanned);
+    add("multiple_choice / edge_collapse speed at " + ratio_label(kThroughputRatio) + " (1 thread, geomean, scanned)",
+        sp.value, "%.2fx", ">= 2.00x", false, kChoiceSpeedup, sp.n);
+    add("multiple_choice / edge_collapse mean error at " + ratio_label(kThroughputRatio) + " (geomean, scanned)",
+        m.value, "%.3fx", "<= 1.30x", true, kChoiceMeanError, m.n);
   }
   // Memory: the worst lodforge run of all (the contract), and of the large meshes only, where fixed costs (thread
   // pools, allocator arenas) no longer inflate the per-triangle figure.
@@ -935,8 +1185,14 @@ int main(int argc, char** argv) {
   app.add_option("--input", input_dir, "folder of meshes (all supported files in it)")->capture_default_str();
   app.add_option("--mesh", mesh_files, "mesh file(s) to run instead of the folder (repeatable)");
   app.add_option("--ratios", s.ratios, "target ratios (comma separated)")->delimiter(',')->capture_default_str();
-  app.add_option("--methods", method_names, "subset of lodforge-1t,lodforge-all,meshopt,openmesh")->delimiter(',');
-  app.add_flag("--no-generated", no_generated, "skip the generated mesh");
+  app.add_option("--methods", method_names, "subset of lodforge-1t,lodforge-all,lodforge-mc,meshopt,openmesh")
+      ->delimiter(',');
+  app.add_flag("--no-generated", no_generated, "skip the generated torus");
+  app.add_flag("!--no-plate", s.plate, "skip the generated flat CAD-like plate");
+  app.add_option("--plate-triangles", s.plate_triangles, "size of the generated plate")->capture_default_str();
+  app.add_flag("--terrain", s.terrain, "add the generated 16.8M-triangle fBm terrain, at 1% (slow: minutes)");
+  app.add_option("--terrain-side", s.terrain_side, "vertices per side of the terrain")->capture_default_str();
+  app.add_flag("!--no-ceiling", s.ceiling, "skip two lodforge-1t processes at once on meshes of 1M triangles+");
   app.add_option("--generated-triangles", s.generated_triangles, "size of the generated mesh")->capture_default_str();
   app.add_option("--eval-samples", s.eval_samples, "area samples per direction for evaluate()")->capture_default_str();
   app.add_flag("!--no-eval", s.eval, "skip the quality evaluation");
@@ -955,6 +1211,7 @@ int main(int argc, char** argv) {
   if (s.quick) {
     if (app.count("--ratios") == 0) s.ratios = {0.1, 0.02, 0.01};
     if (app.count("--generated-triangles") == 0) s.generated_triangles = 500'000;
+    if (app.count("--plate-triangles") == 0) s.plate_triangles = 200'000;
     if (app.count("--eval-samples") == 0) s.eval_samples = 300'000;
     if (app.count("--reps") == 0) s.max_reps = 1;
     if (app.count("--openmesh-max") == 0) s.openmesh_max_triangles = 150'000;
@@ -1006,6 +1263,8 @@ int main(int argc, char** argv) {
     }
   }
   if (s.generated) inputs.push_back(make_bumpy_torus(s.generated_triangles));
+  if (s.plate) inputs.push_back(make_cad_plate(s.plate_triangles));
+  if (s.terrain) inputs.push_back(make_terrain(s.terrain_side));
   for (Input& in : inputs) {
     count_edges(in);
     in.diagonal = lodforge::compute_bounds(in.mesh).diagonal();
@@ -1025,7 +1284,7 @@ int main(int argc, char** argv) {
   Results res;
   res.inputs = &inputs;
   for (const Input& in : inputs) {
-    for (double ratio : s.ratios) {
+    for (double ratio : in.only_ratios.empty() ? s.ratios : in.only_ratios) {
       const std::size_t target =
           std::max<std::size_t>(1, static_cast<std::size_t>(std::llround(ratio * static_cast<double>(in.triangles()))));
       std::optional<Run> lf1;
@@ -1055,6 +1314,14 @@ int main(int argc, char** argv) {
         print_row(r);
         res.runs.push_back(std::move(r));
       }
+      if (s.ceiling && in.triangles() >= kHugeMeshTriangles && lf1 && lf1->ok()) {
+        const Ceiling c{in.name, ratio, lf1->seconds, run_pair(in, ratio, target, s)};
+        std::printf("%-22s %9zu %6s %-13s %9s %9s %8s  two lodforge-1t processes at once: %s the throughput of one\n",
+                    in.name.c_str(), in.triangles(), ratio_label(ratio).c_str(), "2x lodforge-1t", "-",
+                    fmt("%.1f", 1e3 * c.pair_s).c_str(), fmt("%.3f", 2.0 * static_cast<double>(in.triangles()) / c.pair_s / 1e6).c_str(),
+                    fmt("%.2fx", c.speedup()).c_str());
+        res.ceilings.push_back(c);
+      }
     }
   }
 
@@ -1077,6 +1344,13 @@ int main(int argc, char** argv) {
                   {"diagonal", in.diagonal}});
   json jr = json::array();
   for (const Run& r : res.runs) jr.push_back(to_json(r));
+  json jc = json::array();
+  for (const Ceiling& c : res.ceilings)
+    jc.push_back({{"mesh", c.mesh},
+                  {"ratio", c.ratio},
+                  {"one_process_seconds", num(c.single_s)},
+                  {"two_processes_mean_seconds", num(c.pair_s)},
+                  {"two_process_speedup", num(c.speedup())}});
   json ms = json::array();
   for (Method m : s.methods) ms.push_back(method_name(m));
   const json doc = {{"tool", "lodforge_bench_simplify"},
@@ -1090,9 +1364,12 @@ int main(int argc, char** argv) {
                       {"max_repetitions", s.max_reps},
                       {"repetition_budget_s", s.rep_budget_s},
                       {"quick", s.quick},
-                      {"generated_triangles", s.generated ? s.generated_triangles : 0}}},
+                      {"generated_triangles", s.generated ? s.generated_triangles : 0},
+                      {"plate_triangles", s.plate ? s.plate_triangles : 0},
+                      {"terrain_side", s.terrain ? s.terrain_side : 0}}},
                     {"meshes", jm},
                     {"runs", jr},
+                    {"two_process_ceiling", jc},
                     {"summary", summary},
                     {"load_average_1min", {{"start", num(load_start)}, {"end", num(load_end)}}},
                     {"total_seconds", total_s}};
