@@ -66,11 +66,13 @@ struct Measurement {
 // walks stay local). A budget that fails usually fails somewhere broad, so the first passes find it.
 constexpr std::size_t kPassStrides[] = {64, 8, 1};
 
-// The largest of distance(i) over the points i < n that pass `pass` visits; stops early, setting `over`, once one
-// exceeds `limit`. The value is the same for any thread count (exact maxima per chunk, combined by max).
+// The largest of distance(i) over the points i < n that pass `pass` visits, and `floor`; stops early, setting
+// `over`, once one exceeds `limit`. distance(i, hint, known) may return `known` (the largest found so far)
+// for a point it finds no farther. The value is the same for any thread count (exact maxima per chunk,
+// combined by max).
 template <typename Distance>
-double pass_max(tbb::task_arena& arena, std::size_t pass, std::size_t n, double limit, std::atomic<bool>& over,
-                Distance&& distance) {
+double pass_max(tbb::task_arena& arena, std::size_t pass, std::size_t n, double limit, double floor,
+                std::atomic<bool>& over, Distance&& distance) {
   const std::size_t stride = kPassStrides[pass];
   const std::size_t coarser = pass == 0 ? 0 : kPassStrides[pass - 1];
   return arena.execute([&] {
@@ -78,11 +80,12 @@ double pass_max(tbb::task_arena& arena, std::size_t pass, std::size_t n, double 
         tbb::blocked_range<std::size_t>(0, (n + stride - 1) / stride, std::max<std::size_t>(1, 1024 / stride)), 0.0,
         [&](const tbb::blocked_range<std::size_t>& r, double acc) {
           if (over.load(std::memory_order_relaxed)) return acc;
+          acc = std::max(acc, floor);
           std::uint32_t hint = kInvalidIndex;  // the previous answer: neighbouring points are near each other
           for (std::size_t k = r.begin(); k < r.end(); ++k) {
             const std::size_t i = k * stride;
             if (coarser != 0 && i % coarser == 0) continue;  // measured by a coarser pass
-            const double d = distance(i, hint);
+            const double d = distance(i, hint, acc);
             acc = std::max(acc, d);
             if (d > limit) {
               over.store(true, std::memory_order_relaxed);
@@ -234,22 +237,26 @@ class Reference {
       }
     }
     constexpr double kOver = std::numeric_limits<double>::infinity();
-    auto distance_to = [&](const TriangleBvh& bvh, const Vec3d& p, std::uint32_t& hint) {
+    auto distance_to = [&](const TriangleBvh& bvh, const Vec3d& p, std::uint32_t& hint, double known) {
       if (decide_only) return bvh.any_within(p, budget, hint) ? 0.0 : kOver;
+      // A point within the largest distance found so far cannot raise it: only the others are measured.
+      if (known > 0 && bvh.any_within(p, known, hint)) return known;
       const BvhHit h = bvh.closest_point(p, hint);
       hint = h.triangle;
       return h.distance();
     };
     for (std::size_t pass = 0; pass < std::size(kPassStrides) && !over.load(); ++pass) {
-      m.sampled = std::max(m.sampled, pass_max(arena_, pass, forward.size(), budget, over, [&](std::size_t i, std::uint32_t& hint) {
-                             return distance_to(index_.bvh, forward[i], hint);
-                           }));
+      m.sampled = pass_max(arena_, pass, forward.size(), budget, m.sampled, over,
+                           [&](std::size_t i, std::uint32_t& hint, double known) {
+                             return distance_to(index_.bvh, forward[i], hint, known);
+                           });
       if (over.load()) break;
-      m.reverse = std::max(m.reverse, pass_max(arena_, pass, reverse.size(), budget, over, [&](std::size_t i, std::uint32_t& hint) {
-                             const double d = distance_to(lod.bvh, reverse[i], hint);
+      m.reverse = pass_max(arena_, pass, reverse.size(), budget, m.reverse, over,
+                           [&](std::size_t i, std::uint32_t& hint, double known) {
+                             const double d = distance_to(lod.bvh, reverse[i], hint, known);
                              if (d > budget) suspect(reverse[i]);
                              return d;
-                           }));
+                           });
     }
     // Which value stopped it depends on the threads: report only that it was over.
     if (over.load()) m.sampled = m.reverse = std::numeric_limits<double>::infinity();
