@@ -26,6 +26,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -847,6 +848,9 @@ auto stage(F body, double StageSeconds::*field, const char* name, double timeout
       if (!job->finished && field != &StageSeconds::write) job->check_deadline();
     } catch (const TimedOut&) {
       fail(*job, timeout_message(name, timeout_s));
+    } catch (const io::IoError& e) {
+      // The record and the failure list name the asset already; its path is not repeated in the message.
+      fail(*job, e.file() == job->file ? e.problem() : e.what());
     } catch (const std::exception& e) {
       fail(*job, e.what());
     } catch (...) {
@@ -864,6 +868,19 @@ bool supported(const fs::path& p) {
   } catch (const io::IoError&) {
     return false;
   }
+}
+
+// Files that belong to assets without being assets (glTF buffers and textures, OBJ materials) or to the file
+// system (hidden files): not worth a warning about unsupported files.
+bool companion_file(const fs::path& p) {
+  const std::string name = p.filename().string();
+  if (!name.empty() && name[0] == '.') return true;
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  for (const char* e : {".bin", ".mtl", ".png", ".jpg", ".jpeg", ".ktx2", ".webp", ".dds", ".tga", ".basis"}) {
+    if (ext == e) return true;
+  }
+  return false;
 }
 
 // Bytes of the asset's mesh data on disk: the file, plus for a .gltf the buffers it declares (its JSON is small;
@@ -1017,13 +1034,18 @@ LibraryScan scan_library(const fs::path& input_dir) {
     }
     // Lexically: fs::relative would resolve a linked file to its target's path (a duplicate, or "../x.obj",
     // whose LODs would be written outside the output folder).
-    if (type == fs::file_type::regular && supported(it->path())) {
-      out.assets.push_back(it->path().lexically_relative(input_dir).generic_string());
+    if (type == fs::file_type::regular) {
+      const std::string rel = it->path().lexically_relative(input_dir).generic_string();
+      if (supported(it->path()))
+        out.assets.push_back(rel);
+      else if (!companion_file(it->path()))
+        out.unsupported.push_back(rel);
     }
   }
   if (ec) throw io::IoError(input_dir, "cannot list the folder: " + ec.message());
   std::sort(out.assets.begin(), out.assets.end());
   std::sort(out.skipped.begin(), out.skipped.end());
+  std::sort(out.unsupported.begin(), out.unsupported.end());
   return out;
 }
 
@@ -1048,13 +1070,24 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
     if (rel == ".") throw io::IoError(options.output_dir, "the output folder must not be the library folder");
     if (!rel.empty() && *rel.begin() != "..") output_prefix = rel.generic_string() + "/";
   }
+  auto in_output = [&output_prefix](const std::string& p) {
+    return !output_prefix.empty() && p.rfind(output_prefix, 0) == 0;
+  };
+  std::erase_if(scan.unsupported, in_output);
+  if (std::all_of(all.begin(), all.end(), in_output)) {
+    throw io::IoError(options.input_dir,
+                      "the library holds no asset files (.gltf .glb .obj .ply .off .stl)" +
+                          (scan.unsupported.empty()
+                               ? std::string()
+                               : ", only " + std::to_string(scan.unsupported.size()) + " file(s) of other types"));
+  }
   fs::create_directories(options.output_dir, ec);
   if (ec) throw io::IoError(options.output_dir, "cannot create the output folder: " + ec.message());
   const Cache cache(options.output_dir, tag);
 
   std::vector<std::string> paths;
   for (const std::string& p : all) {
-    if (!output_prefix.empty() && p.rfind(output_prefix, 0) == 0) continue;
+    if (in_output(p)) continue;
     if (!options.shard || in_shard(*options.shard, p)) paths.push_back(p);
   }
   cache.remove_leftovers(paths);
@@ -1075,6 +1108,7 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
 
   RunResult result;
   result.warnings = std::move(scan.skipped);
+  result.unsupported = std::move(scan.unsupported);
   // One asset in flight per thread. Extra ones would wait as spawned tasks, and TBB runs the newest task
   // first, so they would sit (holding their memory budget) until the end of the run.
   // The assets' budget is the limit less what the process holds already (code, libraries, the library's path
@@ -1173,8 +1207,8 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
 
   for (const Pending& p : admission.left()) {
     records[p.index] = base_record(p.path, p.cls);
-    records[p.index]["status"] = "skipped";
-    records[p.index]["error"] = "not processed: the run was stopped before this asset";
+    records[p.index]["status"] = "not_started";
+    records[p.index]["error"] = "not started: the run was stopped before this asset";
     result.cancelled = true;
   }
 
@@ -1187,8 +1221,11 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
     else if (status == "failed") {
       ++result.failed;
       result.failures.push_back(paths[i] + ": " + r["error"].get<std::string>());
+    } else if (status == "not_started") {
+      ++result.not_started;
     } else {
       ++result.skipped;
+      result.skipped_assets.push_back(paths[i] + ": " + r["error"].get<std::string>());
     }
     if (r["cache_hit"].get<bool>()) ++result.cache_hits;
     assets.push_back(std::move(records[i]));

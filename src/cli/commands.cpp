@@ -16,6 +16,7 @@
 #include "lodforge/eval/attribute_eval.hpp"
 #include "lodforge/eval/eval.hpp"
 #include "lodforge/io/asset.hpp"
+#include "lodforge/io/file.hpp"
 #include "lodforge/quad/quad_stats.hpp"
 #include "lodforge/simplify/simplify.hpp"
 
@@ -100,6 +101,40 @@ void print_mesh_info(const Mesh& m, std::size_t index) {
   }
 }
 
+// An output the command cannot write (unsupported extension, an existing folder) is refused before any work.
+bool output_writable(const std::string& out) {
+  try {
+    io::format_from_path(out);
+    io::check_output_path(out);
+    return true;
+  } catch (const io::IoError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    set_exit_code(2);
+    return false;
+  }
+}
+
+// SimplifyOptions::validate() names its fields; on the command line the user wrote options.
+std::string with_option_names(const std::string& problem) {
+  static const std::pair<const char*, const char*> kNames[] = {
+      {"target_ratio", "--ratio"},
+      {"max_error_rel", "--max-error"},
+      {"attribute_weights.normal", "--normal-weight"},
+      {"attribute_weights.uv", "--uv-weight"},
+      {"attribute_weights.color", "--color-weight"},
+      {"attribute_weights.skin", "--skin-weight"},
+      {"priority_channel", "--priority-channel"},
+      {"priority_lock", "--priority-lock"},
+      {"skin_weight_threshold", "--skin-threshold"},
+      {"skin_max_distance", "--skin-max-distance"},
+  };
+  for (const auto& [field, option] : kNames) {
+    const std::string f(field);
+    if (problem.rfind(f + " ", 0) == 0) return option + problem.substr(f.size());
+  }
+  return problem;
+}
+
 }  // namespace
 
 const char* version() { return "0.1.0"; }
@@ -156,6 +191,7 @@ void register_convert(CLI::App& app) {
   cmd->add_option("input", *in, "input asset")->required();
   cmd->add_option("output", *out, "output asset (written atomically)")->required();
   cmd->callback([in, out] {
+    if (!output_writable(*out)) return;
     try {
       const io::Asset a = io::load_asset(*in);
       io::save_asset(a, *out);
@@ -246,10 +282,11 @@ void register_simplify(CLI::App& app) {
       return;
     }
     if (const auto problems = opt.validate(); !problems.empty()) {
-      for (const std::string& p : problems) std::fprintf(stderr, "error: %s\n", p.c_str());
+      for (const std::string& p : problems) std::fprintf(stderr, "error: %s\n", with_option_names(p).c_str());
       set_exit_code(2);
       return;
     }
+    if (!output_writable(a->out)) return;
     try {
       io::Asset asset = io::load_asset(a->in);
       // A relative budget is of the asset's diagonal, for every mesh of it.

@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -144,10 +145,12 @@ std::optional<batch::BatchConfig> load_config_or_report(const std::string& file)
 
 void print_summary(const batch::RunResult& r) {
   const Json& s = r.report["summary"];
-  std::printf("lodforge run: %llu assets: %llu ok (%llu cache hits), %llu failed, %llu skipped\n",
+  const unsigned long long not_started = s.value("not_started", 0ull);
+  std::printf("lodforge run: %llu assets: %llu ok (%llu cache hits), %llu failed, %llu skipped%s\n",
               s["assets"].get<unsigned long long>(), s["succeeded"].get<unsigned long long>(),
               s["cache_hits"].get<unsigned long long>(), s["failed"].get<unsigned long long>(),
-              s["skipped"].get<unsigned long long>());
+              s["skipped"].get<unsigned long long>(),
+              not_started ? (", " + std::to_string(not_started) + " not started").c_str() : "");
   std::printf("  %llu LODs, %s input -> %s output triangles, %.2f s with %llu jobs\n",
               s["lods"].get<unsigned long long>(), human_count(s["input_triangles"].get<double>()).c_str(),
               human_count(s["output_triangles"].get<double>()).c_str(), s["seconds"].get<double>(),
@@ -162,6 +165,26 @@ void print_summary(const batch::RunResult& r) {
               s["lods"].get<unsigned long long>(), missed, missed > 0 ? " (report.json: lods[].budget.reasons)" : "");
 }
 
+// One line for the files of no supported format: a count per extension and the first few names.
+void warn_unsupported(const std::vector<std::string>& files) {
+  if (files.empty()) return;
+  constexpr std::size_t kNamesShown = 10;  // a library can hold thousands of textures-to-be or notes
+  std::map<std::string, std::size_t> by_extension;
+  for (const std::string& f : files) {
+    const std::string ext = fs::path(f).extension().string();
+    ++by_extension[ext.empty() ? "(no extension)" : ext];
+  }
+  std::string counts, names;
+  for (const auto& [ext, n] : by_extension) counts += (counts.empty() ? "" : ", ") + ext + " " + std::to_string(n);
+  for (std::size_t i = 0; i < files.size() && i < kNamesShown; ++i) names += (i ? ", " : "") + files[i];
+  if (files.size() > kNamesShown) names += ", and " + std::to_string(files.size() - kNamesShown) + " more";
+  std::fprintf(stderr, "warning: %zu file(s) of the library are not in a format lodforge reads and were ignored (%s): %s\n",
+               files.size(), counts.c_str(), names.c_str());
+}
+
+// The smallest --memory-limit: below it even one small asset does not fit (it exists for tests).
+constexpr std::uint64_t kMinMemoryLimit = 16ull << 20;
+
 void run_command(const RunArgs& a) {
   std::optional<batch::BatchConfig> config = load_config_or_report(a.config);
   if (!config) return set_exit_code(2);
@@ -170,14 +193,30 @@ void run_command(const RunArgs& a) {
       .config_file = a.config, .input_dir = a.input, .output_dir = a.output, .jobs = a.jobs, .force = a.force};
   try {
     if (!a.shard.empty()) options.shard = batch::parse_shard(a.shard);
-    if (!a.memory_limit.empty()) options.memory_limit_bytes = batch::parse_byte_size(a.memory_limit);
   } catch (const std::invalid_argument& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
     return set_exit_code(2);
   }
+  try {
+    if (!a.memory_limit.empty()) options.memory_limit_bytes = batch::parse_byte_size(a.memory_limit);
+  } catch (const std::invalid_argument& e) {
+    std::fprintf(stderr, "error: --memory-limit: %s\n", e.what());
+    return set_exit_code(2);
+  }
+  if (!a.memory_limit.empty() && options.memory_limit_bytes < kMinMemoryLimit) {
+    std::fprintf(stderr, "error: --memory-limit %s is below the smallest limit, 16M\n", a.memory_limit.c_str());
+    return set_exit_code(2);
+  }
+  if (const unsigned cores = std::thread::hardware_concurrency(); cores > 0 && a.jobs > cores) {
+    std::fprintf(stderr,
+                 "warning: --jobs %u is more than the %u cores of this machine: the extra threads share the cores "
+                 "and each holds an asset in memory\n",
+                 a.jobs, cores);
+  }
   std::error_code ec;
   if (!fs::is_directory(a.input, ec)) {
-    std::fprintf(stderr, "error: %s: no such folder (--input must be the library folder)\n", a.input.c_str());
+    std::fprintf(stderr, "error: %s: %s (--input must be the library folder)\n", a.input.c_str(),
+                 fs::exists(a.input, ec) ? "is a file, not a folder" : "no such folder");
     return set_exit_code(2);
   }
 
@@ -203,7 +242,12 @@ void run_command(const RunArgs& a) {
   std::signal(SIGTERM, SIG_DFL);
   progress.finish();
   for (const std::string& w : r.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
+  warn_unsupported(r.unsupported);
   print_summary(r);
+  if (!r.skipped_assets.empty()) {
+    std::fprintf(stderr, "%zu asset(s) skipped:\n", r.skipped_assets.size());
+    for (const std::string& f : r.skipped_assets) std::fprintf(stderr, "  %s\n", f.c_str());
+  }
   if (!r.failures.empty()) {
     std::fprintf(stderr, "%zu asset(s) failed:\n", r.failures.size());
     for (const std::string& f : r.failures) std::fprintf(stderr, "  %s\n", f.c_str());
@@ -211,7 +255,7 @@ void run_command(const RunArgs& a) {
   }
   if (a.strict && r.report["summary"].value("lods_missed", 0ull) > 0) set_exit_code(1);
   if (r.cancelled && g_cancel) {
-    std::fprintf(stderr, "interrupted: the assets not reported were not processed; run again to resume\n");
+    std::fprintf(stderr, "interrupted: %zu asset(s) not started; run again to resume\n", r.not_started);
     set_exit_code(kExitInterrupted);
   }
 }
@@ -323,6 +367,11 @@ void register_merge_reports(CLI::App& app) {
         const Json j = Json::parse(io::read_file(f), nullptr, false);
         if (j.is_discarded()) {
           std::fprintf(stderr, "error: %s: not valid JSON\n", f.c_str());
+          return set_exit_code(2);
+        }
+        if (const std::vector<std::string> problems = batch::check_report(j); !problems.empty()) {
+          std::fprintf(stderr, "error: %s: not a lodforge report: %s%s\n", f.c_str(), problems.front().c_str(),
+                       problems.size() > 1 ? (" (and " + std::to_string(problems.size() - 1) + " more)").c_str() : "");
           return set_exit_code(2);
         }
         reports.push_back(j);

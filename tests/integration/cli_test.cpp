@@ -1,6 +1,7 @@
 // End-to-end tests of the `lodforge` command: exit codes, messages, and that bad input writes nothing.
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -47,6 +48,56 @@ TEST(Cli, HelpListsSubcommandsAndExitCodes) {
 }
 
 TEST(Cli, UnknownSubcommandIsUsageError) { EXPECT_EQ(run_cli("frobnicate").exit_code, 2); }
+
+TEST(Cli, UnknownCommandsAndOptionsAreNamedWithAGuess) {
+  const CliRun option = run_cli("run --confg x.json --input a --output b");
+  EXPECT_EQ(option.exit_code, 2);
+  EXPECT_EQ(option.output.rfind("error: unknown option --confg (did you mean --config?)", 0), 0u) << option.output;
+  const CliRun command = run_cli("rnu --config x.json");
+  EXPECT_EQ(command.exit_code, 2);
+  EXPECT_EQ(command.output, "error: unknown command rnu (did you mean run?)\n");
+  const CliRun far = run_cli("frobnicate");
+  EXPECT_NE(far.output.find("unknown command frobnicate (commands: "), std::string::npos) << far.output;
+  const CliRun with_value = run_cli("simplify in.obj out.obj --ratoi=0.5");
+  EXPECT_NE(with_value.output.find("unknown option --ratoi (did you mean --ratio?)"), std::string::npos)
+      << with_value.output;
+  EXPECT_EQ(with_value.exit_code, 2);
+  // Values that look like options, and the options themselves, pass.
+  EXPECT_EQ(run_cli("run --help").exit_code, 0);
+  EXPECT_EQ(run_cli("--version").exit_code, 0);
+}
+
+TEST(Cli, RandomBytesStlSaysItIsNotAValidStlAndWhy) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_random_stl");
+  std::string bytes(400, '\0');
+  std::uint32_t state = 7;
+  for (char& c : bytes) {
+    state = state * 1664525u + 1013904223u;
+    c = static_cast<char>(state >> 24);
+  }
+  bytes[0] = 'x';
+  write_text(dir / "noise.stl", bytes);
+  const CliRun r = run_cli("info " + (dir / "noise.stl").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("error: " + (dir / "noise.stl").string() + ": not a valid STL: read as binary STL"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("LoadOptions"), std::string::npos) << r.output;
+}
+
+TEST(Cli, UnwritableOutputIsRefusedBeforeTheWork) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_output_fbx");
+  write_text(dir / "t.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  for (const char* command : {"simplify", "convert"}) {
+    const CliRun r = run_cli(std::string(command) + " " + (dir / "t.obj").string() + " " + (dir / "out.fbx").string());
+    EXPECT_EQ(r.exit_code, 2) << r.output;
+    EXPECT_EQ(r.output, "error: " + (dir / "out.fbx").string() +
+                            ": unsupported file extension '.fbx' (supported: .gltf .glb .obj .ply .off .stl)\n");
+  }
+  // Unreadable input after a refused output is never even opened.
+  const CliRun r = run_cli("simplify " + (dir / "missing.obj").string() + " " + (dir / "out.fbx").string());
+  EXPECT_EQ(r.output.find("missing.obj"), std::string::npos) << r.output;
+}
 
 TEST(Cli, InfoOnMissingFileNamesItAndExitsTwo) {
   const CliRun r = run_cli("info /nonexistent/dir/thing.obj");
@@ -193,6 +244,8 @@ TEST(Cli, SimplifyRejectsInvalidOptions) {
   const CliRun r = run_cli("simplify " + (dir / "environment/rock.ply").string() + " " + (dir / "x.ply").string() +
                         " --ratio 1.5");
   EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("error: --ratio must be in (0, 1], got 1.5"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("target_ratio"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(dir / "x.ply"));
 }
 

@@ -91,7 +91,7 @@ struct RunOptions {
   std::uint64_t memory_limit_bytes = 0;  // 0 = default_memory_limit()
   bool write_report = true;              // report.json + report.html in output_dir (report.shard-K-of-N.* when sharded)
   std::function<void(const AssetDone&)> on_asset_done{};  // progress observer; must not throw
-  // Stops admitting new assets once set (Ctrl-C); assets in flight finish, the rest are reported "skipped".
+  // Stops admitting new assets once set (Ctrl-C); assets in flight finish, the rest are reported "not_started".
   const std::atomic<bool>* cancel = nullptr;
   // Testing aid: admit at most this many assets (0 = all), as if the run were stopped there.
   std::size_t stop_after = 0;
@@ -113,13 +113,16 @@ struct StageSeconds {
 struct RunResult {
   nlohmann::json report;  // the report.json document
   std::size_t succeeded = 0, failed = 0, skipped = 0, cache_hits = 0;
+  std::size_t not_started = 0;  // assets a stopped run did not reach (status "not_started")
   std::vector<std::string> failures;  // "path: error", sorted by path
+  std::vector<std::string> skipped_assets;  // "path: reason" of the skipped ones (no class matches), sorted
   StageSeconds stages;
   std::uint64_t input_triangles = 0;  // of the assets processed (not cache hits)
   double seconds = 0;
   bool cancelled = false;
   std::filesystem::path report_path;  // where report.json went (empty if not written)
   std::vector<std::string> warnings;  // library entries the scan skipped (LibraryScan::skipped)
+  std::vector<std::string> unsupported;  // LibraryScan::unsupported, less the output folder's own files
 };
 
 struct LibraryScan {
@@ -127,12 +130,16 @@ struct LibraryScan {
   // Entries that cannot be read, each "<path>: skipped: <why>" (a symbolic link loop, a broken link with an
   // asset's extension, a folder that cannot be opened); the rest of the library is scanned as usual.
   std::vector<std::string> skipped;
+  // Files of no format lodforge reads (.fbx, .txt), as sorted relative paths; companions of assets (.bin
+  // buffers, textures, .mtl) and hidden files are not listed.
+  std::vector<std::string> unsupported;
 };
 
 // The supported files under `input_dir`. Throws io::IoError when the folder itself cannot be read.
 LibraryScan scan_library(const std::filesystem::path& input_dir);
 
-// Throws io::IoError when the input folder cannot be read or the output folder cannot be created; everything
+// Throws io::IoError when the input folder cannot be read or holds no asset file at all (nothing is written then),
+// or the output folder cannot be created; everything
 // that goes wrong with one asset is recorded in its report record instead.
 RunResult run_batch(const BatchConfig& config, const RunOptions& options);
 

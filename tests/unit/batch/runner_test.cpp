@@ -203,6 +203,9 @@ TEST(BatchRunner, CorruptAssetsFailAloneAndAreReported) {
   EXPECT_EQ(r.failures[0].rfind("chars/truncated.glb: ", 0), 0u) << r.failures[0];
   EXPECT_EQ(r.failures[1].rfind("env/empty.ply: ", 0), 0u) << r.failures[1];
   EXPECT_EQ(r.failures[2].rfind("props/broken.obj: ", 0), 0u) << r.failures[2];
+  for (const std::string& f : r.failures) {
+    EXPECT_EQ(f.find(lib.root.string()), std::string::npos) << "the path is given twice: " << f;
+  }
   const Json& broken = record_of(r.report, "props/broken.obj");
   EXPECT_EQ(broken["status"], "failed");
   EXPECT_TRUE(broken["error"].is_string());
@@ -226,7 +229,9 @@ TEST(BatchRunner, StoppedRunResumesToIdenticalOutput) {
       run_batch(config(), {.input_dir = lib.root, .output_dir = dir / "out", .jobs = 2, .stop_after = 60});
   EXPECT_TRUE(stopped.cancelled);
   EXPECT_EQ(stopped.succeeded, 60u);
-  EXPECT_EQ(stopped.skipped, lib.files.size() - 60);
+  EXPECT_EQ(stopped.not_started, lib.files.size() - 60);
+  EXPECT_EQ(stopped.skipped, 0u);
+  EXPECT_EQ(stopped.report["summary"]["not_started"], lib.files.size() - 60);
   EXPECT_TRUE(check_report(stopped.report).empty());
   EXPECT_TRUE(testlib::leftovers(dir / "out").empty());
   // What a kill in the middle of writing leaves: a staged half-asset and an entry's temporary file.
@@ -260,7 +265,7 @@ TEST(BatchRunner, CancelFlagStopsAdmittingAssets) {
   EXPECT_TRUE(r.cancelled);
   EXPECT_GE(r.succeeded, 5u);
   EXPECT_LT(r.succeeded, 10u) << "only the assets already in flight finish";
-  EXPECT_EQ(r.succeeded + r.skipped, lib.files.size());
+  EXPECT_EQ(r.succeeded + r.not_started, lib.files.size());
 }
 
 TEST(BatchRunner, ThreeShardsMergeToTheUnshardedReport) {
