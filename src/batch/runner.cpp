@@ -18,6 +18,7 @@
 #include <tbb/flow_graph.h>
 #include <tbb/global_control.h>
 #include <tbb/info.h>
+#include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 #include <unistd.h>
 #if defined(__GLIBC__)
@@ -1049,18 +1050,18 @@ LibraryScan scan_library(const fs::path& input_dir) {
   return out;
 }
 
-RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
-  const auto t0 = Clock::now();
-  const int cores = tbb::info::default_concurrency();
-  const unsigned jobs = options.jobs == 0 ? static_cast<unsigned>(cores) : options.jobs;
-  const std::uint64_t memory_limit = options.memory_limit_bytes ? options.memory_limit_bytes : default_memory_limit();
-  const std::string tag =
-      options.shard ? std::to_string(options.shard->index) + "-of-" + std::to_string(options.shard->count) : "0-of-1";
-  const std::string report_stem = options.shard ? "report.shard-" + tag : "report";
+namespace {
 
-  // Scan (sorted), shard, classify.
-  LibraryScan scan = scan_library(options.input_dir);
-  const std::vector<std::string>& all = scan.assets;
+// The assets a run processes: the library's supported files less those of an output folder inside it, cut to
+// the shard. Throws io::IoError for an unreadable library or one without a single asset file.
+struct Selection {
+  LibraryScan scan;
+  std::vector<std::string> paths;
+};
+
+Selection select_assets(const RunOptions& options) {
+  Selection sel{scan_library(options.input_dir), {}};
+  LibraryScan& scan = sel.scan;
   std::error_code ec;
   // An output folder inside the library is not part of it (its LODs would be assets of the next run).
   std::string output_prefix;
@@ -1074,22 +1075,146 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
     return !output_prefix.empty() && p.rfind(output_prefix, 0) == 0;
   };
   std::erase_if(scan.unsupported, in_output);
-  if (std::all_of(all.begin(), all.end(), in_output)) {
+  if (std::all_of(scan.assets.begin(), scan.assets.end(), in_output)) {
     throw io::IoError(options.input_dir,
                       "the library holds no asset files (.gltf .glb .obj .ply .off .stl)" +
                           (scan.unsupported.empty()
                                ? std::string()
                                : ", only " + std::to_string(scan.unsupported.size()) + " file(s) of other types"));
   }
+  for (const std::string& p : scan.assets) {
+    if (in_output(p)) continue;
+    if (!options.shard || in_shard(*options.shard, p)) sel.paths.push_back(p);
+  }
+  return sel;
+}
+
+std::string describe_target(const LodTarget& t) {
+  const Json j = target_json(t);
+  char value[32];
+  std::snprintf(value, sizeof value, "%g", j["value"].get<double>());
+  std::string out = j["kind"].get<std::string>() + " " + value;
+  if (t.kind == TargetKind::max_error_abs) out += " (absolute)";
+  return out;
+}
+
+// Files an output folder holds that a run writes: meshes, their buffers, materials and textures. Nothing else
+// there is ever judged stale, so pointing --output at a folder of other files cannot lose them.
+bool output_like(const fs::path& p) {
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  for (const char* e : {".gltf", ".glb", ".bin", ".obj", ".mtl", ".ply", ".off", ".stl", ".png", ".jpg", ".jpeg",
+                        ".ktx2", ".webp"}) {
+    if (ext == e) return true;
+  }
+  return false;
+}
+
+// Output files of earlier runs that this run's assets no longer produce (sorted, '/'-separated, relative to the
+// output folder). Assets that did not finish (failed, not started) keep what their last good run wrote.
+std::vector<std::string> stale_outputs(const fs::path& output_dir, const Cache& cache,
+                                       const std::vector<std::string>& paths, const std::vector<Json>& records) {
+  std::set<std::string> produced;
+  for (std::size_t i = 0; i < records.size(); ++i) {
+    const Json& r = records[i];
+    if (r["status"] == "ok") {
+      for (const Json& o : r["outputs"]) produced.insert(o.get<std::string>());
+    } else if (r["status"] != "skipped") {
+      for (std::string& o : cache.listed_outputs(paths[i])) produced.insert(std::move(o));
+    }
+  }
+  std::vector<std::string> stale;
+  std::error_code ec;
+  for (auto it = fs::recursive_directory_iterator(output_dir, ec); !ec && it != fs::recursive_directory_iterator();
+       it.increment(ec)) {
+    std::error_code type_ec;
+    if (it->is_directory(type_ec)) {
+      if (it->path().filename() == kCacheFolder) it.disable_recursion_pending();
+      continue;
+    }
+    if (!it->is_regular_file(type_ec) || !output_like(it->path())) continue;
+    const std::string rel = it->path().lexically_relative(output_dir).generic_string();
+    if (!produced.count(rel)) stale.push_back(rel);
+  }
+  std::sort(stale.begin(), stale.end());
+  return stale;
+}
+
+// Removes the files and then the folders they leave empty, up to (not including) the output folder.
+void remove_outputs(const fs::path& output_dir, const std::vector<std::string>& files) {
+  std::error_code ec;
+  for (const std::string& f : files) {
+    fs::remove(output_dir / f, ec);
+    for (fs::path dir = (output_dir / f).parent_path(); dir != output_dir && dir.native().size() > output_dir.native().size();
+         dir = dir.parent_path()) {
+      if (!fs::is_empty(dir, ec) || ec || !fs::remove(dir, ec)) break;
+    }
+  }
+}
+
+}  // namespace
+
+Plan plan_batch(const BatchConfig& config, const RunOptions& options) {
+  Selection sel = select_assets(options);
+  const std::string tag =
+      options.shard ? std::to_string(options.shard->index) + "-of-" + std::to_string(options.shard->count) : "0-of-1";
+  const Cache cache(options.output_dir, tag, /*read_only=*/true);
+  std::map<const AssetClass*, Json> class_json;
+  for (const AssetClass& cls : config.classes) class_json[&cls] = effective_class_json(config, cls);
+
+  Plan plan;
+  plan.warnings = std::move(sel.scan.skipped);
+  plan.unsupported = std::move(sel.scan.unsupported);
+  plan.assets.resize(sel.paths.size());
+  const unsigned jobs = options.jobs == 0 ? static_cast<unsigned>(tbb::info::default_concurrency()) : options.jobs;
+  tbb::task_arena arena(static_cast<int>(jobs));
+  arena.execute([&] {
+    tbb::parallel_for(std::size_t{0}, sel.paths.size(), [&](std::size_t i) {
+      PlannedAsset& a = plan.assets[i];
+      a.path = sel.paths[i];
+      const AssetClass* cls = match_class(config, a.path);
+      if (!cls) {
+        a.reason = unmatched_reason(config, a.path);
+        return;
+      }
+      a.class_name = cls->name;
+      for (const LodSpec& l : cls->lods) a.lods.push_back(describe_target(l.target));
+      if (options.force) {
+        a.rebuild = true;
+        a.reason = "--force";
+        return;
+      }
+      try {
+        const std::string key = cache_key(input_fingerprint(options.input_dir / a.path), class_json.at(cls),
+                                          kAlgorithmVersion);
+        a.reason = cache.why_stale(a.path, key);
+      } catch (const io::IoError& e) {
+        a.reason = "cannot be read: " + (e.file() == options.input_dir / a.path ? e.problem() : std::string(e.what()));
+      }
+      a.rebuild = !a.reason.empty();
+    });
+  });
+  return plan;
+}
+
+RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
+  const auto t0 = Clock::now();
+  const int cores = tbb::info::default_concurrency();
+  const unsigned jobs = options.jobs == 0 ? static_cast<unsigned>(cores) : options.jobs;
+  const std::uint64_t memory_limit = options.memory_limit_bytes ? options.memory_limit_bytes : default_memory_limit();
+  const std::string tag =
+      options.shard ? std::to_string(options.shard->index) + "-of-" + std::to_string(options.shard->count) : "0-of-1";
+  const std::string report_stem = options.shard ? "report.shard-" + tag : "report";
+
+  // Scan (sorted), shard, classify.
+  Selection sel = select_assets(options);
+  LibraryScan& scan = sel.scan;
+  const std::vector<std::string>& paths = sel.paths;
+  std::error_code ec;
   fs::create_directories(options.output_dir, ec);
   if (ec) throw io::IoError(options.output_dir, "cannot create the output folder: " + ec.message());
   const Cache cache(options.output_dir, tag);
 
-  std::vector<std::string> paths;
-  for (const std::string& p : all) {
-    if (in_output(p)) continue;
-    if (!options.shard || in_shard(*options.shard, p)) paths.push_back(p);
-  }
   cache.remove_leftovers(paths);
   remove_report_leftovers(options.output_dir, {report_stem + ".json", report_stem + ".html"});
 
@@ -1212,6 +1337,11 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
     result.cancelled = true;
   }
 
+  // Status and outputs of each asset, kept for the stale-output check (the records move into the report).
+  std::vector<Json> records_for_stale(records.size());
+  for (std::size_t i = 0; i < records.size(); ++i) {
+    records_for_stale[i] = {{"status", records[i]["status"]}, {"outputs", records[i]["outputs"]}};
+  }
   Json assets = Json::array();
   for (std::size_t i = 0; i < records.size(); ++i) {
     const Json& r = records[i];
@@ -1230,6 +1360,18 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
     if (r["cache_hit"].get<bool>()) ++result.cache_hits;
     assets.push_back(std::move(records[i]));
   }
+  // Stale outputs are judged only where this run sees every asset: a shard does not know the others' outputs.
+  if (!options.shard) {
+    result.stale_outputs = stale_outputs(options.output_dir, cache, paths, records_for_stale);
+    if (options.prune) {
+      remove_outputs(options.output_dir, result.stale_outputs);
+      const std::set<std::string> library(paths.begin(), paths.end());
+      for (const std::string& p : cache.entry_paths()) {
+        if (!library.count(p)) cache.remove_entry(p);
+      }
+      result.pruned = true;
+    }
+  }
   result.input_triangles = triangles_done;
   result.seconds = seconds_since(t0);
 
@@ -1240,6 +1382,10 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
   report["jobs"] = jobs;
   report["shard"] = options.shard ? Json(shard_name(*options.shard)) : Json(nullptr);
   report["summary"] = report_summary(assets, result.seconds);
+  if (!result.stale_outputs.empty()) {
+    report["stale_outputs"] = result.stale_outputs;
+    report["stale_outputs_removed"] = result.pruned;
+  }
   report["assets"] = std::move(assets);
   if (options.write_report) {
     result.report_path = options.output_dir / (report_stem + ".json");

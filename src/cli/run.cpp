@@ -128,6 +128,8 @@ struct RunArgs {
   unsigned jobs = 0;
   bool force = false;
   bool strict = false;
+  bool dry_run = false;
+  bool prune = false;
   double asset_timeout_s = -1;  // < 0: the config's defaults.asset_timeout_s
 };
 
@@ -182,6 +184,48 @@ void warn_unsupported(const std::vector<std::string>& files) {
                files.size(), counts.c_str(), names.c_str());
 }
 
+// `run --dry-run`: one line per asset, then the counts; nothing is written.
+void print_plan(const batch::Plan& plan) {
+  std::size_t rebuild = 0, fresh = 0, skipped = 0;
+  for (const batch::PlannedAsset& a : plan.assets) {
+    if (a.class_name.empty()) {
+      ++skipped;
+      std::printf("%s: skipped: %s\n", a.path.c_str(), a.reason.c_str());
+      continue;
+    }
+    std::string lods;
+    for (std::size_t k = 0; k < a.lods.size(); ++k) {
+      lods += (k ? ", " : "") + std::string("LOD") + std::to_string(k + 1) + " " + a.lods[k];
+    }
+    a.rebuild ? ++rebuild : ++fresh;
+    std::printf("%s: class %s; %s; %s\n", a.path.c_str(), a.class_name.c_str(), lods.c_str(),
+                a.rebuild ? ("rebuild (" + a.reason + ")").c_str() : "up to date");
+  }
+  std::printf("lodforge run --dry-run: %zu assets: %zu would be rebuilt, %zu up to date, %zu skipped; nothing "
+              "written\n",
+              plan.assets.size(), rebuild, fresh, skipped);
+}
+
+// Stale outputs: removed with --prune (each listed), otherwise counted with the first few named.
+void report_stale(const batch::RunResult& r, const fs::path& output) {
+  if (r.stale_outputs.empty()) return;
+  if (r.pruned) {
+    std::printf("pruned %zu output file(s) the library and config no longer produce:\n", r.stale_outputs.size());
+    for (const std::string& f : r.stale_outputs) std::printf("  removed %s\n", (output / f).string().c_str());
+    return;
+  }
+  constexpr std::size_t kNamesShown = 10;
+  std::string names;
+  for (std::size_t i = 0; i < r.stale_outputs.size() && i < kNamesShown; ++i) {
+    names += (i ? ", " : "") + r.stale_outputs[i];
+  }
+  if (r.stale_outputs.size() > kNamesShown) names += ", and " + std::to_string(r.stale_outputs.size() - kNamesShown) + " more";
+  std::fprintf(stderr,
+               "warning: %zu file(s) in %s are no longer produced by the library and config (report.json: "
+               "stale_outputs; --prune removes them): %s\n",
+               r.stale_outputs.size(), output.string().c_str(), names.c_str());
+}
+
 // The smallest --memory-limit: below it even one small asset does not fit (it exists for tests).
 constexpr std::uint64_t kMinMemoryLimit = 16ull << 20;
 
@@ -191,6 +235,12 @@ void run_command(const RunArgs& a) {
   if (a.asset_timeout_s >= 0) config->limits.asset_timeout_s = a.asset_timeout_s;
   batch::RunOptions options{
       .config_file = a.config, .input_dir = a.input, .output_dir = a.output, .jobs = a.jobs, .force = a.force};
+  options.prune = a.prune;
+  if (a.prune && !a.shard.empty()) {
+    std::fprintf(stderr, "error: --prune cannot be used with --shard: a shard does not see the other shards' "
+                         "outputs\n");
+    return set_exit_code(2);
+  }
   try {
     if (!a.shard.empty()) options.shard = batch::parse_shard(a.shard);
   } catch (const std::invalid_argument& e) {
@@ -220,6 +270,19 @@ void run_command(const RunArgs& a) {
     return set_exit_code(2);
   }
 
+  if (a.dry_run) {
+    try {
+      const batch::Plan plan = batch::plan_batch(*config, options);
+      for (const std::string& w : plan.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
+      warn_unsupported(plan.unsupported);
+      print_plan(plan);
+    } catch (const io::IoError& e) {
+      std::fprintf(stderr, "error: %s\n", e.what());
+      set_exit_code(2);
+    }
+    return;
+  }
+
   Progress progress(::isatty(::fileno(stderr)) == 1);
   options.on_asset_done = [&progress](const batch::AssetDone& d) { progress(d); };
   g_cancel = false;
@@ -244,6 +307,7 @@ void run_command(const RunArgs& a) {
   for (const std::string& w : r.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
   warn_unsupported(r.unsupported);
   print_summary(r);
+  report_stale(r, a.output);
   if (!r.skipped_assets.empty()) {
     std::fprintf(stderr, "%zu asset(s) skipped:\n", r.skipped_assets.size());
     for (const std::string& f : r.skipped_assets) std::fprintf(stderr, "  %s\n", f.c_str());
@@ -328,6 +392,11 @@ void register_run(CLI::App& app) {
                   "K/N: process only the assets whose path hashes to K mod N (K is 0-based); the report goes to "
                   "report.shard-K-of-N.json, see merge-reports");
   cmd->add_flag("--force", a->force, "ignore the cache: rebuild every asset");
+  cmd->add_flag("--dry-run", a->dry_run,
+                "print each asset's class, LOD targets and whether it would be rebuilt; write nothing");
+  cmd->add_flag("--prune", a->prune,
+                "remove (and list) output files the library and config no longer produce; without it they are "
+                "only reported");
   cmd->add_flag("--strict", a->strict,
                 "exit 1 when any LOD misses its budget (target not reached, error budget not met, or not 10% "
                 "smaller than the level before)");

@@ -388,6 +388,62 @@ TEST(BatchCli, MergeReportsNamesAFileThatIsNoReport) {
   EXPECT_NE(r.output.find("error: " + config.string() + ": not a lodforge report: "), std::string::npos) << r.output;
 }
 
+TEST(BatchCli, DryRunPrintsClassTargetsAndRebuildsAndWritesNothing) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_dry_run");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 5);
+  const fs::path config = testlib::write_config(dir);
+  const CliResult dry = run_cli(run_args(config, lib.root, dir / "out", "--dry-run"));
+  EXPECT_EQ(dry.exit_code, 0) << dry.output;
+  EXPECT_FALSE(fs::exists(dir / "out"));
+  const std::string prop = *std::find_if(lib.files.begin(), lib.files.end(),
+                                         [](const std::string& p) { return p.rfind("props/", 0) == 0; });
+  EXPECT_NE(dry.output.find(prop + ": class props; LOD1 ratio 0.5, LOD2 ratio 0.25, LOD3 ratio 0.1; rebuild (not "
+                                   "built yet)\n"),
+            std::string::npos)
+      << dry.output;
+  const std::string n = std::to_string(lib.files.size());
+  EXPECT_NE(dry.output.find("lodforge run --dry-run: " + n + " assets: " + n +
+                            " would be rebuilt, 0 up to date, 0 skipped; nothing written"),
+            std::string::npos)
+      << dry.output;
+  ASSERT_EQ(run_cli(run_args(config, lib.root, dir / "out")).exit_code, 0);
+  const CliResult again = run_cli(run_args(config, lib.root, dir / "out", "--dry-run"));
+  EXPECT_NE(again.output.find(prop + ": class props; LOD1 ratio 0.5, LOD2 ratio 0.25, LOD3 ratio 0.1; up to date\n"),
+            std::string::npos)
+      << again.output;
+}
+
+TEST(BatchCli, StaleOutputsAreReportedAndPrunedWithPrune) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_prune");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 5);
+  const fs::path config = testlib::write_config(dir);
+  ASSERT_EQ(run_cli(run_args(config, lib.root, dir / "out")).exit_code, 0);
+  const std::string prop = *std::find_if(lib.files.begin(), lib.files.end(), [](const std::string& p) {
+    return p.rfind("props/", 0) == 0 && fs::path(p).extension() == ".obj";
+  });
+  const fs::path lod1 = dir / "out" / fs::path(prop).parent_path() /
+                        (fs::path(prop).stem().string() + "_LOD1.obj");
+  ASSERT_TRUE(fs::exists(lod1));
+  fs::remove(lib.root / prop);
+  const CliResult listed = run_cli(run_args(config, lib.root, dir / "out"));
+  EXPECT_EQ(listed.exit_code, 0) << listed.output;
+  EXPECT_NE(listed.output.find("warning: 3 file(s) in " + (dir / "out").string() +
+                               " are no longer produced by the library and config"),
+            std::string::npos)
+      << listed.output;
+  EXPECT_TRUE(fs::exists(lod1));
+  const CliResult pruned = run_cli(run_args(config, lib.root, dir / "out", "--prune"));
+  EXPECT_EQ(pruned.exit_code, 0) << pruned.output;
+  EXPECT_NE(pruned.output.find("pruned 3 output file(s) the library and config no longer produce:\n  removed " +
+                               lod1.string() + "\n"),
+            std::string::npos)
+      << pruned.output;
+  EXPECT_FALSE(fs::exists(lod1));
+  const CliResult sharded = run_cli(run_args(config, lib.root, dir / "out", "--prune --shard 0/2"));
+  EXPECT_EQ(sharded.exit_code, 2);
+  EXPECT_NE(sharded.output.find("--prune cannot be used with --shard"), std::string::npos) << sharded.output;
+}
+
 TEST(BatchCli, SymbolicLinkLoopIsSkippedWithAWarning) {
   const fs::path dir = lodforge::testing::temp_dir("batch_cli_link_loop");
   const testlib::Library lib = testlib::write_library(dir / "lib", 6);

@@ -88,6 +88,9 @@ struct RunOptions {
   unsigned jobs = 0;  // threads for the whole run (graph and the simplifier inside it); 0 = all cores
   std::optional<Shard> shard{};
   bool force = false;                    // ignore the cache (still writes it)
+  // Remove the output files (and the cache entries) that the library and config no longer produce; without it
+  // they are only listed (RunResult::stale_outputs). Not in a sharded run, which sees only its own assets.
+  bool prune = false;
   std::uint64_t memory_limit_bytes = 0;  // 0 = default_memory_limit()
   bool write_report = true;              // report.json + report.html in output_dir (report.shard-K-of-N.* when sharded)
   std::function<void(const AssetDone&)> on_asset_done{};  // progress observer; must not throw
@@ -123,7 +126,30 @@ struct RunResult {
   std::filesystem::path report_path;  // where report.json went (empty if not written)
   std::vector<std::string> warnings;  // library entries the scan skipped (LibraryScan::skipped)
   std::vector<std::string> unsupported;  // LibraryScan::unsupported, less the output folder's own files
+  // Output files (meshes, buffers, materials, textures; relative to the output folder, sorted) that no asset of
+  // this run produced: left by assets since removed, renamed or unmatched, or by LODs the config dropped. Outputs
+  // of assets that failed or were not started this time are kept. Empty in a sharded run.
+  std::vector<std::string> stale_outputs;
+  bool pruned = false;  // RunOptions::prune: stale_outputs were removed
 };
+
+// What `run --dry-run` prints: per asset its class, LOD targets and whether a run would rebuild it.
+struct PlannedAsset {
+  std::string path;
+  std::string class_name;         // empty: no class matches (the asset would be skipped)
+  std::vector<std::string> lods;  // "ratio 0.5", "triangles 60", "max_error 0.03", "screen_size 2"
+  bool rebuild = false;
+  std::string reason;  // why it is rebuilt ("not built yet", "input or config changed", ...) or skipped
+};
+struct Plan {
+  std::vector<PlannedAsset> assets;   // sorted by path
+  std::vector<std::string> warnings;  // LibraryScan::skipped
+  std::vector<std::string> unsupported;
+};
+
+// The run `options` would make, with nothing written (no output folder, cache or report is created): reads
+// every asset file to fingerprint it, as a run does. Throws io::IoError like run_batch.
+Plan plan_batch(const BatchConfig& config, const RunOptions& options);
 
 struct LibraryScan {
   std::vector<std::string> assets;  // the supported files, as sorted '/'-separated relative paths
