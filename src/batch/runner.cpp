@@ -512,23 +512,6 @@ Json attribute_metrics(const EvalResult& e, const std::vector<Mesh>& sources, co
   return out;
 }
 
-// All meshes of an asset as one surface (positions and faces only), for eval: the report measures the asset.
-Mesh merged_surface(const std::vector<const Mesh*>& meshes) {
-  Mesh all;
-  for (const Mesh* m : meshes) {
-    const auto vbase = static_cast<std::uint32_t>(all.positions.size());
-    const auto wbase = static_cast<std::uint32_t>(all.wedge_vertex.size());
-    all.positions.insert(all.positions.end(), m->positions.begin(), m->positions.end());
-    for (const std::uint32_t v : m->wedge_vertex) all.wedge_vertex.push_back(vbase + v);
-    const auto cbase = static_cast<std::uint32_t>(all.corner_wedge.size());
-    for (const std::uint32_t w : m->corner_wedge) all.corner_wedge.push_back(wbase + w);
-    for (std::size_t f = 1; f < m->face_offsets.size(); ++f) all.face_offsets.push_back(cbase + m->face_offsets[f]);
-  }
-  all.face_material.assign(all.face_count(), 0);
-  all.materials.push_back({});
-  return all;
-}
-
 io::Asset with_meshes(const io::Asset& base, std::vector<Mesh> meshes) {
   io::Asset a;
   a.source = base.source;
@@ -536,6 +519,7 @@ io::Asset with_meshes(const io::Asset& base, std::vector<Mesh> meshes) {
   a.gltf = base.gltf;
   a.obj_mtllibs = base.obj_mtllibs;
   a.binary = base.binary;
+  a.mesh_transforms = base.mesh_transforms;
   a.meshes = std::move(meshes);
   return a;
 }
@@ -567,7 +551,6 @@ class Pipeline {
   void load(Job& job) { job.asset = io::load_asset(job.file); }
 
   void analyse(Job& job) {
-    Bounds3 bounds;
     for (std::size_t m = 0; m < job.asset.meshes.size(); ++m) {
       const Mesh& mesh = job.asset.meshes[m];
       const ValidationReport v = validate(mesh);
@@ -581,14 +564,10 @@ class Pipeline {
       job.triangles += mesh.triangle_count();
       job.vertices += mesh.vertex_count();
       job.repeated_faces += repeated_faces(mesh).size();  // simplify() drops them (report: input)
-      const Bounds3 b = compute_bounds(mesh);
-      if (!b.empty()) {
-        bounds.add(b.min);
-        bounds.add(b.max);
-      }
     }
     if (job.triangles == 0) throw std::runtime_error("the asset has no triangles to simplify");
-    job.diagonal = bounds.diagonal();
+    // The size the asset is seen at: in world space, through its glTF nodes' transforms.
+    job.diagonal = io::world_bounds(job.asset).diagonal();
     job.record["input"] = {
         {"triangles", job.triangles}, {"vertices", job.vertices}, {"diagonal", finite(job.diagonal)},
         {"repeated_faces", job.repeated_faces}};
@@ -602,12 +581,14 @@ class Pipeline {
         job.chains.push_back(std::move(chain));
         continue;
       }
+      // The world diagonal in the mesh's own units: relative budgets are of the asset as the scene shows it.
+      const double diagonal = job.diagonal / io::world_scale(job.asset, job.chains.size());
       Hasher key;
       key.bytes(mesh_content_hash(mesh)).bytes(job.cls->name).u64(job.triangles);
-      key.u64(std::bit_cast<std::uint64_t>(job.diagonal));
+      key.u64(std::bit_cast<std::uint64_t>(diagonal));
       std::atomic<bool>* expire = job.path == options_.expire_in_simplify ? &job.expired : nullptr;
       job.chains.push_back(chains_.get(key.hex(), [&] {
-        return build_chain(mesh, *job.cls, job.triangles, job.diagonal, jobs_, job.stop_request(), expire);
+        return build_chain(mesh, *job.cls, job.triangles, diagonal, jobs_, job.stop_request(), expire);
       }));
     }
   }
@@ -650,16 +631,15 @@ class Pipeline {
   }
 
   void measure(Job& job) {
-    std::vector<const Mesh*> source_ptrs;
-    for (const Mesh& m : job.sources) source_ptrs.push_back(&m);
-    const Mesh source = merged_surface(source_ptrs);
+    // Measured in world space (glTF node transforms applied), as the asset is seen and as its diagonal is.
+    io::Asset placed = with_meshes(job.asset, job.sources);
+    const Mesh source = io::world_surface(placed);
     Json lods = Json::array();
     double coverage_above = 1.0;
     job.coverage.clear();
     for (std::size_t k = 0; k < job.levels.size(); ++k) {
       job.check_deadline();
       const LodSpec& spec = job.cls->lods[k];
-      std::vector<const Mesh*> lod_ptrs;
       std::size_t triangles = 0, vertices = 0;
       double bound = 0, seconds = 0;
       bool verified = true, met = true, certified = true;
@@ -668,11 +648,10 @@ class Pipeline {
       std::vector<std::string> floors;  // what held the meshes that missed, first seen first
       SeamStage seam_stage = SeamStage::strict;
       for (std::size_t m = 0; m < job.levels[k].size(); ++m) {
-        lod_ptrs.push_back(&job.levels[k][m]);
         triangles += job.levels[k][m].triangle_count();
         vertices += job.levels[k][m].vertex_count();
         const MeshLod& built = (*job.chains[m])[k];
-        bound = std::max(bound, built.error_bound_abs);
+        bound = std::max(bound, built.error_bound_abs * io::world_scale(job.asset, m));
         seconds += built.seconds;
         if (job.asset.meshes[m].triangle_count() > 0) {
           verified = verified && built.budget.verified;
@@ -690,7 +669,8 @@ class Pipeline {
       for (const std::string& s : stops) stop += (stop.empty() ? "" : ",") + s;
       const std::size_t previous = k == 0 ? job.triangles : lods.back()["triangles"].get<std::size_t>();
 
-      const Mesh lod = merged_surface(lod_ptrs);
+      placed.meshes = job.levels[k];
+      const Mesh lod = io::world_surface(placed);
       const std::size_t larger = std::max(source.triangle_count(), lod.triangle_count());
       EvalOptions eval;
       eval.samples = std::clamp(kEvalSamplesPerTriangle * larger, kEvalSamplesMin, kEvalSamplesMax);

@@ -289,24 +289,20 @@ void register_simplify(CLI::App& app) {
     if (!output_writable(a->out)) return;
     try {
       io::Asset asset = io::load_asset(a->in);
-      // A relative budget is of the asset's diagonal, for every mesh of it.
-      Bounds3 asset_bounds;
-      for (const Mesh& m : asset.meshes) {
-        const Bounds3 b = compute_bounds(m);
-        if (!b.empty()) {
-          asset_bounds.add(b.min);
-          asset_bounds.add(b.max);
-        }
-      }
-      const double diagonal = asset_bounds.diagonal();
-      if (opt.max_error_rel >= 0.0) {
-        opt.max_error_abs = opt.max_error_rel * diagonal;
-        opt.max_error_rel = -1.0;
-      }
-      auto percent = [&](double x) { return diagonal > 0.0 ? 100.0 * x / diagonal : 0.0; };
+      // A relative budget is of the asset's diagonal as the scene shows it (glTF node transforms applied), for
+      // every mesh of it; each mesh gets it in its own units.
+      const double world_diagonal = io::world_bounds(asset).diagonal();
+      const double max_error_rel = opt.max_error_rel;
       for (std::size_t i = 0; i < asset.meshes.size(); ++i) {
         const Mesh& src = asset.meshes[i];
-        SimplifyResult r = simplify(src, opt);
+        const double diagonal = world_diagonal / io::world_scale(asset, i);
+        auto percent = [&](double x) { return diagonal > 0.0 ? 100.0 * x / diagonal : 0.0; };
+        SimplifyOptions mesh_opt = opt;
+        if (max_error_rel >= 0.0) {
+          mesh_opt.max_error_abs = max_error_rel * diagonal;
+          mesh_opt.max_error_rel = -1.0;
+        }
+        SimplifyResult r = simplify(src, mesh_opt);
         std::printf("mesh %zu: %zu -> %zu triangles, QEM error %.4f%% of diagonal (a ranking, not a bound), "
                     "stopped: %s, %.1f ms\n",
                     i, r.triangles_before, r.triangles_after, percent(r.qem_error_abs),
@@ -383,25 +379,8 @@ void register_eval(CLI::App& app) {
     try {
       const io::Asset orig = io::load_asset(a->first);
       const io::Asset simp = io::load_asset(a->second);
-      // Meshes of an asset are measured as one surface.
-      auto merged = [](const io::Asset& asset) {
-        Mesh all;
-        all.materials.push_back({});
-        for (const Mesh& m : asset.meshes) {
-          const auto base = static_cast<std::uint32_t>(all.vertex_count());
-          all.positions.insert(all.positions.end(), m.positions.begin(), m.positions.end());
-          for (std::size_t f = 0; f < m.face_count(); ++f) {
-            std::vector<std::uint32_t> w;
-            for (std::uint32_t c = m.face_offsets[f]; c < m.face_offsets[f + 1]; ++c) {
-              all.wedge_vertex.push_back(base + m.corner_vertex(c));
-              w.push_back(static_cast<std::uint32_t>(all.wedge_vertex.size() - 1));
-            }
-            all.add_face(w.data(), w.size());
-          }
-        }
-        return all;
-      };
-      const EvalResult r = evaluate(merged(orig), merged(simp), *opt);
+      // Meshes of an asset are measured as one surface, placed as the scene shows them (glTF node transforms).
+      const EvalResult r = evaluate(io::world_surface(orig), io::world_surface(simp), *opt);
       // Attributes, UVs and skinning per mesh (meshes pair up by index when both assets have as many).
       std::vector<AttributeEvalResult> attrs;
       if (orig.meshes.size() == simp.meshes.size()) {
