@@ -1092,7 +1092,7 @@ bool output_like(const fs::path& p) {
 
 // Output files of earlier runs that this run's assets no longer produce (sorted, '/'-separated, relative to the
 // output folder). Assets that did not finish (failed, not started) keep what their last good run wrote.
-std::vector<std::string> stale_outputs(const fs::path& output_dir, const Cache& cache,
+std::vector<std::string> stale_outputs(const fs::path& output_dir, const fs::path& input_dir, const Cache& cache,
                                        const std::vector<std::string>& paths, const std::vector<Json>& records) {
   std::set<std::string> produced;
   for (std::size_t i = 0; i < records.size(); ++i) {
@@ -1109,7 +1109,10 @@ std::vector<std::string> stale_outputs(const fs::path& output_dir, const Cache& 
        it.increment(ec)) {
     std::error_code type_ec;
     if (it->is_directory(type_ec)) {
-      if (it->path().filename() == kCacheFolder) it.disable_recursion_pending();
+      // A library inside the output folder holds the inputs, never outputs.
+      if (it->path().filename() == kCacheFolder || fs::equivalent(it->path(), input_dir, type_ec)) {
+        it.disable_recursion_pending();
+      }
       continue;
     }
     if (!it->is_regular_file(type_ec) || !output_like(it->path())) continue;
@@ -1342,7 +1345,7 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
   }
   // Stale outputs are judged only where this run sees every asset: a shard does not know the others' outputs.
   if (!options.shard) {
-    result.stale_outputs = stale_outputs(options.output_dir, cache, paths, records_for_stale);
+    result.stale_outputs = stale_outputs(options.output_dir, options.input_dir, cache, paths, records_for_stale);
     if (options.prune) {
       remove_outputs(options.output_dir, result.stale_outputs);
       const std::set<std::string> library(paths.begin(), paths.end());

@@ -774,5 +774,15 @@ TEST(BatchPrune, StaleOutputsAreListedAndRemovedOnlyWithPrune) {
   EXPECT_TRUE(run_batch(props_levels(2), prune).stale_outputs.empty());
 }
 
+TEST(BatchPrune, ALibraryInsideTheOutputFolderIsNeverStale) {
+  const fs::path dir = testing::temp_dir("batch_prune_library_inside");
+  const testlib::Library lib = testlib::write_library(dir / "out/lib", 6);
+  RunOptions prune{.input_dir = lib.root, .output_dir = dir / "out", .jobs = 2};
+  prune.prune = true;
+  const RunResult r = run_batch(config(), prune);
+  EXPECT_TRUE(r.stale_outputs.empty()) << r.stale_outputs.front();
+  for (const std::string& f : lib.files) EXPECT_TRUE(fs::exists(lib.root / f)) << f;
+}
+
 }  // namespace
 }  // namespace lodforge::batch
