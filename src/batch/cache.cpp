@@ -148,10 +148,11 @@ std::string cache_key(std::string_view input_fingerprint, const Json& effective_
 
 // ---- Cache ----------------------------------------------------------------------------------------------------
 
-Cache::Cache(fs::path output_dir, std::string staging_tag)
+Cache::Cache(fs::path output_dir, std::string staging_tag, bool read_only)
     : output_dir_(std::move(output_dir)),
       root_(output_dir_ / kCacheFolder),
       staging_root_(root_ / ("staging-" + staging_tag)) {
+  if (read_only) return;
   std::error_code ec;
   fs::create_directories(root_ / "entries", ec);
   if (ec) throw io::IoError(root_ / "entries", "cannot create the cache folder: " + ec.message());
@@ -161,24 +162,85 @@ fs::path Cache::entry_path(std::string_view relative_path) const {
   return root_ / "entries" / (hex64(path_hash(relative_path)) + ".json");
 }
 
-std::optional<Json> Cache::lookup(std::string_view relative_path, std::string_view key) const {
+namespace {
+
+// The entry of `relative_path` when it is well formed and is that asset's; null otherwise.
+Json read_entry(const fs::path& file, std::string_view relative_path) {
   std::string text;
   try {
-    text = io::read_file(entry_path(relative_path));
+    text = io::read_file(file);
   } catch (const io::IoError&) {
-    return std::nullopt;
+    return nullptr;
   }
-  const Json entry = Json::parse(text, nullptr, false);
-  if (!entry.is_object() || entry.value("path", std::string()) != relative_path ||
-      entry.value("key", std::string()) != key || !entry.contains("outputs") || !entry["outputs"].is_array() ||
+  Json entry = Json::parse(text, nullptr, false);
+  if (!entry.is_object() || entry.value("path", std::string()) != relative_path || !entry.contains("key") ||
+      !entry["key"].is_string() || !entry.contains("outputs") || !entry["outputs"].is_array() ||
       !entry.contains("record") || !entry["record"].is_object()) {
-    return std::nullopt;
+    return nullptr;
   }
+  return entry;
+}
+
+// Why `entry` (from read_entry) does not stand for the outputs of `key`; empty when it does.
+std::string stale_reason(const Json& entry, std::string_view key, const fs::path& output_dir) {
+  if (entry.is_null()) return "not built yet";
+  if (entry["key"].get<std::string>() != key) return "input or config changed";
   for (const Json& out : entry["outputs"]) {
     std::error_code ec;
-    if (!out.is_string() || !fs::is_regular_file(output_dir_ / out.get<std::string>(), ec)) return std::nullopt;
+    if (!out.is_string() || !fs::is_regular_file(output_dir / out.get<std::string>(), ec)) {
+      return "an output is missing";
+    }
   }
-  return entry["record"];
+  return {};
+}
+
+}  // namespace
+
+std::string Cache::why_stale(std::string_view relative_path, std::string_view key) const {
+  return stale_reason(read_entry(entry_path(relative_path), relative_path), key, output_dir_);
+}
+
+std::optional<Json> Cache::lookup(std::string_view relative_path, std::string_view key) const {
+  Json entry = read_entry(entry_path(relative_path), relative_path);
+  if (!stale_reason(entry, key, output_dir_).empty()) return std::nullopt;
+  return std::move(entry["record"]);
+}
+
+std::vector<std::string> Cache::listed_outputs(std::string_view relative_path) const {
+  std::vector<std::string> out;
+  const Json entry = read_entry(entry_path(relative_path), relative_path);
+  if (entry.is_null()) return out;
+  for (const Json& o : entry["outputs"]) {
+    if (o.is_string()) out.push_back(o.get<std::string>());
+  }
+  return out;
+}
+
+std::vector<std::string> Cache::entry_paths() const {
+  std::vector<std::string> out;
+  std::error_code ec;
+  for (auto it = fs::directory_iterator(root_ / "entries", ec); !ec && it != fs::directory_iterator();
+       it.increment(ec)) {
+    if (it->path().extension() != ".json") continue;
+    std::string text;
+    try {
+      text = io::read_file(it->path());
+    } catch (const io::IoError&) {
+      continue;
+    }
+    const Json entry = Json::parse(text, nullptr, false);
+    if (entry.is_object() && entry.contains("path") && entry["path"].is_string()) {
+      const std::string path = entry["path"];
+      if (it->path().filename() == entry_path(path).filename()) out.push_back(path);
+    }
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+void Cache::remove_entry(std::string_view relative_path) const {
+  std::error_code ec;
+  fs::remove(entry_path(relative_path), ec);
 }
 
 void Cache::store(std::string_view relative_path, std::string_view key, const std::vector<std::string>& outputs,

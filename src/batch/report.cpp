@@ -137,7 +137,8 @@ void strip_seconds(Json& j) {
 }  // namespace
 
 Json report_summary(const Json& assets, double seconds) {
-  std::uint64_t ok = 0, failed = 0, skipped = 0, hits = 0, lods = 0, in_tris = 0, out_tris = 0, missed = 0;
+  std::uint64_t ok = 0, failed = 0, skipped = 0, not_started = 0, hits = 0, lods = 0, in_tris = 0, out_tris = 0,
+                missed = 0;
   for (const Json& a : assets) {
     const std::string status = a.value("status", std::string());
     if (status == "ok") {
@@ -153,6 +154,8 @@ Json report_summary(const Json& assets, double seconds) {
       }
     } else if (status == "failed") {
       ++failed;
+    } else if (status == "not_started") {
+      ++not_started;
     } else {
       ++skipped;
     }
@@ -160,7 +163,7 @@ Json report_summary(const Json& assets, double seconds) {
   }
   return {{"assets", assets.size()}, {"succeeded", ok}, {"failed", failed},           {"skipped", skipped},
           {"cache_hits", hits},      {"lods", lods},    {"input_triangles", in_tris}, {"output_triangles", out_tris},
-          {"seconds", seconds},      {"lods_missed", missed}};
+          {"seconds", seconds},      {"lods_missed", missed},   {"not_started", not_started}};
 }
 
 std::vector<std::string> check_report(const Json& report) {
@@ -183,8 +186,8 @@ std::vector<std::string> check_report(const Json& report) {
     check_fields(a, kAssetFields, where, out);
     if (!a.is_object()) continue;
     const std::string status = a.value("status", std::string());
-    if (status != "ok" && status != "failed" && status != "skipped") {
-      out.push_back(where + ".status: expected ok, failed or skipped");
+    if (status != "ok" && status != "failed" && status != "skipped" && status != "not_started") {
+      out.push_back(where + ".status: expected ok, failed, skipped or not_started");
     }
     if (i > 0 && assets[i - 1].is_object() &&
         a.value("path", std::string()) <= assets[i - 1].value("path", std::string())) {

@@ -495,7 +495,7 @@ void header_cell(std::string& out, std::string_view label, bool numeric, bool so
 std::string_view status_class(const std::optional<std::string>& status) {
   if (status == "ok") return "st-ok";
   if (status == "failed") return "st-failed";
-  if (status == "skipped") return "st-skipped";
+  if (status == "skipped" || status == "not_started") return "st-skipped";
   return {};
 }
 
@@ -554,6 +554,7 @@ void render_header(std::string& out, const json& report) {
   figure(out, "succeeded", count_or_dash(number(s, "succeeded")));
   figure(out, "failed", count_or_dash(failed), failed && *failed > 0);
   figure(out, "skipped", count_or_dash(number(s, "skipped")));
+  if (const std::optional<double> n = number(s, "not_started"); n && *n > 0) figure(out, "not started", count_or_dash(n));
   figure(out, "cache hits", count_or_dash(number(s, "cache_hits")));
   figure(out, "LODs", count_or_dash(number(s, "lods")));
   figure(out, "input triangles", count_or_dash(in));
@@ -583,10 +584,11 @@ void render_problem_table(std::string& out, const std::vector<const Asset*>& ass
 }
 
 void render_failures(std::string& out, const std::vector<Asset>& assets) {
-  std::vector<const Asset*> failed, skipped;
+  std::vector<const Asset*> failed, skipped, not_started;
   for (const Asset& a : assets) {
     if (a.failed()) failed.push_back(&a);
     if (a.status == "skipped") skipped.push_back(&a);
+    if (a.status == "not_started") not_started.push_back(&a);
   }
   const auto by_path = [](const Asset* x, const Asset* y) { return x->path_or_empty() < y->path_or_empty(); };
   std::stable_sort(failed.begin(), failed.end(), by_path);
@@ -601,6 +603,11 @@ void render_failures(std::string& out, const std::vector<Asset>& assets) {
   if (!skipped.empty()) {  // folded: skips are expected (assets no class matches), failures are not
     out += "<details><summary>Skipped (" + std::to_string(skipped.size()) + ")</summary>\n";
     render_problem_table(out, skipped, "reason");
+    out += "</details>\n";
+  }
+  if (!not_started.empty()) {  // the run was stopped; a re-run resumes them
+    out += "<details><summary>Not started (" + std::to_string(not_started.size()) + ")</summary>\n";
+    render_problem_table(out, not_started, "reason");
     out += "</details>\n";
   }
   out += "</section>\n";

@@ -18,6 +18,7 @@
 #include <tbb/flow_graph.h>
 #include <tbb/global_control.h>
 #include <tbb/info.h>
+#include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 #include <unistd.h>
 #if defined(__GLIBC__)
@@ -26,6 +27,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -510,23 +512,6 @@ Json attribute_metrics(const EvalResult& e, const std::vector<Mesh>& sources, co
   return out;
 }
 
-// All meshes of an asset as one surface (positions and faces only), for eval: the report measures the asset.
-Mesh merged_surface(const std::vector<const Mesh*>& meshes) {
-  Mesh all;
-  for (const Mesh* m : meshes) {
-    const auto vbase = static_cast<std::uint32_t>(all.positions.size());
-    const auto wbase = static_cast<std::uint32_t>(all.wedge_vertex.size());
-    all.positions.insert(all.positions.end(), m->positions.begin(), m->positions.end());
-    for (const std::uint32_t v : m->wedge_vertex) all.wedge_vertex.push_back(vbase + v);
-    const auto cbase = static_cast<std::uint32_t>(all.corner_wedge.size());
-    for (const std::uint32_t w : m->corner_wedge) all.corner_wedge.push_back(wbase + w);
-    for (std::size_t f = 1; f < m->face_offsets.size(); ++f) all.face_offsets.push_back(cbase + m->face_offsets[f]);
-  }
-  all.face_material.assign(all.face_count(), 0);
-  all.materials.push_back({});
-  return all;
-}
-
 io::Asset with_meshes(const io::Asset& base, std::vector<Mesh> meshes) {
   io::Asset a;
   a.source = base.source;
@@ -534,6 +519,7 @@ io::Asset with_meshes(const io::Asset& base, std::vector<Mesh> meshes) {
   a.gltf = base.gltf;
   a.obj_mtllibs = base.obj_mtllibs;
   a.binary = base.binary;
+  a.mesh_transforms = base.mesh_transforms;
   a.meshes = std::move(meshes);
   return a;
 }
@@ -565,7 +551,6 @@ class Pipeline {
   void load(Job& job) { job.asset = io::load_asset(job.file); }
 
   void analyse(Job& job) {
-    Bounds3 bounds;
     for (std::size_t m = 0; m < job.asset.meshes.size(); ++m) {
       const Mesh& mesh = job.asset.meshes[m];
       const ValidationReport v = validate(mesh);
@@ -579,14 +564,10 @@ class Pipeline {
       job.triangles += mesh.triangle_count();
       job.vertices += mesh.vertex_count();
       job.repeated_faces += repeated_faces(mesh).size();  // simplify() drops them (report: input)
-      const Bounds3 b = compute_bounds(mesh);
-      if (!b.empty()) {
-        bounds.add(b.min);
-        bounds.add(b.max);
-      }
     }
     if (job.triangles == 0) throw std::runtime_error("the asset has no triangles to simplify");
-    job.diagonal = bounds.diagonal();
+    // The size the asset is seen at: in world space, through its glTF nodes' transforms.
+    job.diagonal = io::world_bounds(job.asset).diagonal();
     job.record["input"] = {
         {"triangles", job.triangles}, {"vertices", job.vertices}, {"diagonal", finite(job.diagonal)},
         {"repeated_faces", job.repeated_faces}};
@@ -600,12 +581,14 @@ class Pipeline {
         job.chains.push_back(std::move(chain));
         continue;
       }
+      // The world diagonal in the mesh's own units: relative budgets are of the asset as the scene shows it.
+      const double diagonal = job.diagonal / io::world_scale(job.asset, job.chains.size());
       Hasher key;
       key.bytes(mesh_content_hash(mesh)).bytes(job.cls->name).u64(job.triangles);
-      key.u64(std::bit_cast<std::uint64_t>(job.diagonal));
+      key.u64(std::bit_cast<std::uint64_t>(diagonal));
       std::atomic<bool>* expire = job.path == options_.expire_in_simplify ? &job.expired : nullptr;
       job.chains.push_back(chains_.get(key.hex(), [&] {
-        return build_chain(mesh, *job.cls, job.triangles, job.diagonal, jobs_, job.stop_request(), expire);
+        return build_chain(mesh, *job.cls, job.triangles, diagonal, jobs_, job.stop_request(), expire);
       }));
     }
   }
@@ -648,16 +631,15 @@ class Pipeline {
   }
 
   void measure(Job& job) {
-    std::vector<const Mesh*> source_ptrs;
-    for (const Mesh& m : job.sources) source_ptrs.push_back(&m);
-    const Mesh source = merged_surface(source_ptrs);
+    // Measured in world space (glTF node transforms applied), as the asset is seen and as its diagonal is.
+    io::Asset placed = with_meshes(job.asset, job.sources);
+    const Mesh source = io::world_surface(placed);
     Json lods = Json::array();
     double coverage_above = 1.0;
     job.coverage.clear();
     for (std::size_t k = 0; k < job.levels.size(); ++k) {
       job.check_deadline();
       const LodSpec& spec = job.cls->lods[k];
-      std::vector<const Mesh*> lod_ptrs;
       std::size_t triangles = 0, vertices = 0;
       double bound = 0, seconds = 0;
       bool verified = true, met = true, certified = true;
@@ -666,11 +648,10 @@ class Pipeline {
       std::vector<std::string> floors;  // what held the meshes that missed, first seen first
       SeamStage seam_stage = SeamStage::strict;
       for (std::size_t m = 0; m < job.levels[k].size(); ++m) {
-        lod_ptrs.push_back(&job.levels[k][m]);
         triangles += job.levels[k][m].triangle_count();
         vertices += job.levels[k][m].vertex_count();
         const MeshLod& built = (*job.chains[m])[k];
-        bound = std::max(bound, built.error_bound_abs);
+        bound = std::max(bound, built.error_bound_abs * io::world_scale(job.asset, m));
         seconds += built.seconds;
         if (job.asset.meshes[m].triangle_count() > 0) {
           verified = verified && built.budget.verified;
@@ -688,7 +669,8 @@ class Pipeline {
       for (const std::string& s : stops) stop += (stop.empty() ? "" : ",") + s;
       const std::size_t previous = k == 0 ? job.triangles : lods.back()["triangles"].get<std::size_t>();
 
-      const Mesh lod = merged_surface(lod_ptrs);
+      placed.meshes = job.levels[k];
+      const Mesh lod = io::world_surface(placed);
       const std::size_t larger = std::max(source.triangle_count(), lod.triangle_count());
       EvalOptions eval;
       eval.samples = std::clamp(kEvalSamplesPerTriangle * larger, kEvalSamplesMin, kEvalSamplesMax);
@@ -847,6 +829,9 @@ auto stage(F body, double StageSeconds::*field, const char* name, double timeout
       if (!job->finished && field != &StageSeconds::write) job->check_deadline();
     } catch (const TimedOut&) {
       fail(*job, timeout_message(name, timeout_s));
+    } catch (const io::IoError& e) {
+      // The record and the failure list name the asset already; its path is not repeated in the message.
+      fail(*job, e.file() == job->file ? e.problem() : e.what());
     } catch (const std::exception& e) {
       fail(*job, e.what());
     } catch (...) {
@@ -864,6 +849,19 @@ bool supported(const fs::path& p) {
   } catch (const io::IoError&) {
     return false;
   }
+}
+
+// Files that belong to assets without being assets (glTF buffers and textures, OBJ materials) or to the file
+// system (hidden files): not worth a warning about unsupported files.
+bool companion_file(const fs::path& p) {
+  const std::string name = p.filename().string();
+  if (!name.empty() && name[0] == '.') return true;
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  for (const char* e : {".bin", ".mtl", ".png", ".jpg", ".jpeg", ".ktx2", ".webp", ".dds", ".tga", ".basis"}) {
+    if (ext == e) return true;
+  }
+  return false;
 }
 
 // Bytes of the asset's mesh data on disk: the file, plus for a .gltf the buffers it declares (its JSON is small;
@@ -1017,14 +1015,169 @@ LibraryScan scan_library(const fs::path& input_dir) {
     }
     // Lexically: fs::relative would resolve a linked file to its target's path (a duplicate, or "../x.obj",
     // whose LODs would be written outside the output folder).
-    if (type == fs::file_type::regular && supported(it->path())) {
-      out.assets.push_back(it->path().lexically_relative(input_dir).generic_string());
+    if (type == fs::file_type::regular) {
+      const std::string rel = it->path().lexically_relative(input_dir).generic_string();
+      if (supported(it->path()))
+        out.assets.push_back(rel);
+      else if (!companion_file(it->path()))
+        out.unsupported.push_back(rel);
     }
   }
   if (ec) throw io::IoError(input_dir, "cannot list the folder: " + ec.message());
   std::sort(out.assets.begin(), out.assets.end());
   std::sort(out.skipped.begin(), out.skipped.end());
+  std::sort(out.unsupported.begin(), out.unsupported.end());
   return out;
+}
+
+namespace {
+
+// The assets a run processes: the library's supported files less those of an output folder inside it, cut to
+// the shard. Throws io::IoError for an unreadable library or one without a single asset file.
+struct Selection {
+  LibraryScan scan;
+  std::vector<std::string> paths;
+};
+
+Selection select_assets(const RunOptions& options) {
+  Selection sel{scan_library(options.input_dir), {}};
+  LibraryScan& scan = sel.scan;
+  std::error_code ec;
+  // An output folder inside the library is not part of it (its LODs would be assets of the next run).
+  std::string output_prefix;
+  {
+    const fs::path rel =
+        fs::weakly_canonical(options.output_dir, ec).lexically_relative(fs::weakly_canonical(options.input_dir, ec));
+    if (rel == ".") throw io::IoError(options.output_dir, "the output folder must not be the library folder");
+    if (!rel.empty() && *rel.begin() != "..") output_prefix = rel.generic_string() + "/";
+  }
+  auto in_output = [&output_prefix](const std::string& p) {
+    return !output_prefix.empty() && p.rfind(output_prefix, 0) == 0;
+  };
+  std::erase_if(scan.unsupported, in_output);
+  if (std::all_of(scan.assets.begin(), scan.assets.end(), in_output)) {
+    throw io::IoError(options.input_dir,
+                      "the library holds no asset files (.gltf .glb .obj .ply .off .stl)" +
+                          (scan.unsupported.empty()
+                               ? std::string()
+                               : ", only " + std::to_string(scan.unsupported.size()) + " file(s) of other types"));
+  }
+  for (const std::string& p : scan.assets) {
+    if (in_output(p)) continue;
+    if (!options.shard || in_shard(*options.shard, p)) sel.paths.push_back(p);
+  }
+  return sel;
+}
+
+std::string describe_target(const LodTarget& t) {
+  const Json j = target_json(t);
+  char value[32];
+  std::snprintf(value, sizeof value, "%g", j["value"].get<double>());
+  std::string out = j["kind"].get<std::string>() + " " + value;
+  if (t.kind == TargetKind::max_error_abs) out += " (absolute)";
+  return out;
+}
+
+// Files an output folder holds that a run writes: meshes, their buffers, materials and textures. Nothing else
+// there is ever judged stale, so pointing --output at a folder of other files cannot lose them.
+bool output_like(const fs::path& p) {
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  for (const char* e : {".gltf", ".glb", ".bin", ".obj", ".mtl", ".ply", ".off", ".stl", ".png", ".jpg", ".jpeg",
+                        ".ktx2", ".webp"}) {
+    if (ext == e) return true;
+  }
+  return false;
+}
+
+// Output files of earlier runs that this run's assets no longer produce (sorted, '/'-separated, relative to the
+// output folder). Assets that did not finish (failed, not started) keep what their last good run wrote.
+std::vector<std::string> stale_outputs(const fs::path& output_dir, const fs::path& input_dir, const Cache& cache,
+                                       const std::vector<std::string>& paths, const std::vector<Json>& records) {
+  std::set<std::string> produced;
+  for (std::size_t i = 0; i < records.size(); ++i) {
+    const Json& r = records[i];
+    if (r["status"] == "ok") {
+      for (const Json& o : r["outputs"]) produced.insert(o.get<std::string>());
+    } else if (r["status"] != "skipped") {
+      for (std::string& o : cache.listed_outputs(paths[i])) produced.insert(std::move(o));
+    }
+  }
+  std::vector<std::string> stale;
+  std::error_code ec;
+  for (auto it = fs::recursive_directory_iterator(output_dir, ec); !ec && it != fs::recursive_directory_iterator();
+       it.increment(ec)) {
+    std::error_code type_ec;
+    if (it->is_directory(type_ec)) {
+      // A library inside the output folder holds the inputs, never outputs.
+      if (it->path().filename() == kCacheFolder || fs::equivalent(it->path(), input_dir, type_ec)) {
+        it.disable_recursion_pending();
+      }
+      continue;
+    }
+    if (!it->is_regular_file(type_ec) || !output_like(it->path())) continue;
+    const std::string rel = it->path().lexically_relative(output_dir).generic_string();
+    if (!produced.count(rel)) stale.push_back(rel);
+  }
+  std::sort(stale.begin(), stale.end());
+  return stale;
+}
+
+// Removes the files and then the folders they leave empty, up to (not including) the output folder.
+void remove_outputs(const fs::path& output_dir, const std::vector<std::string>& files) {
+  std::error_code ec;
+  for (const std::string& f : files) {
+    fs::remove(output_dir / f, ec);
+    for (fs::path dir = (output_dir / f).parent_path(); dir != output_dir && dir.native().size() > output_dir.native().size();
+         dir = dir.parent_path()) {
+      if (!fs::is_empty(dir, ec) || ec || !fs::remove(dir, ec)) break;
+    }
+  }
+}
+
+}  // namespace
+
+Plan plan_batch(const BatchConfig& config, const RunOptions& options) {
+  Selection sel = select_assets(options);
+  const std::string tag =
+      options.shard ? std::to_string(options.shard->index) + "-of-" + std::to_string(options.shard->count) : "0-of-1";
+  const Cache cache(options.output_dir, tag, /*read_only=*/true);
+  std::map<const AssetClass*, Json> class_json;
+  for (const AssetClass& cls : config.classes) class_json[&cls] = effective_class_json(config, cls);
+
+  Plan plan;
+  plan.warnings = std::move(sel.scan.skipped);
+  plan.unsupported = std::move(sel.scan.unsupported);
+  plan.assets.resize(sel.paths.size());
+  const unsigned jobs = options.jobs == 0 ? static_cast<unsigned>(tbb::info::default_concurrency()) : options.jobs;
+  tbb::task_arena arena(static_cast<int>(jobs));
+  arena.execute([&] {
+    tbb::parallel_for(std::size_t{0}, sel.paths.size(), [&](std::size_t i) {
+      PlannedAsset& a = plan.assets[i];
+      a.path = sel.paths[i];
+      const AssetClass* cls = match_class(config, a.path);
+      if (!cls) {
+        a.reason = unmatched_reason(config, a.path);
+        return;
+      }
+      a.class_name = cls->name;
+      for (const LodSpec& l : cls->lods) a.lods.push_back(describe_target(l.target));
+      if (options.force) {
+        a.rebuild = true;
+        a.reason = "--force";
+        return;
+      }
+      try {
+        const std::string key = cache_key(input_fingerprint(options.input_dir / a.path), class_json.at(cls),
+                                          kAlgorithmVersion);
+        a.reason = cache.why_stale(a.path, key);
+      } catch (const io::IoError& e) {
+        a.reason = "cannot be read: " + (e.file() == options.input_dir / a.path ? e.problem() : std::string(e.what()));
+      }
+      a.rebuild = !a.reason.empty();
+    });
+  });
+  return plan;
 }
 
 RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
@@ -1037,26 +1190,14 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
   const std::string report_stem = options.shard ? "report.shard-" + tag : "report";
 
   // Scan (sorted), shard, classify.
-  LibraryScan scan = scan_library(options.input_dir);
-  const std::vector<std::string>& all = scan.assets;
+  Selection sel = select_assets(options);
+  LibraryScan& scan = sel.scan;
+  const std::vector<std::string>& paths = sel.paths;
   std::error_code ec;
-  // An output folder inside the library is not part of it (its LODs would be assets of the next run).
-  std::string output_prefix;
-  {
-    const fs::path rel =
-        fs::weakly_canonical(options.output_dir, ec).lexically_relative(fs::weakly_canonical(options.input_dir, ec));
-    if (rel == ".") throw io::IoError(options.output_dir, "the output folder must not be the library folder");
-    if (!rel.empty() && *rel.begin() != "..") output_prefix = rel.generic_string() + "/";
-  }
   fs::create_directories(options.output_dir, ec);
   if (ec) throw io::IoError(options.output_dir, "cannot create the output folder: " + ec.message());
   const Cache cache(options.output_dir, tag);
 
-  std::vector<std::string> paths;
-  for (const std::string& p : all) {
-    if (!output_prefix.empty() && p.rfind(output_prefix, 0) == 0) continue;
-    if (!options.shard || in_shard(*options.shard, p)) paths.push_back(p);
-  }
   cache.remove_leftovers(paths);
   remove_report_leftovers(options.output_dir, {report_stem + ".json", report_stem + ".html"});
 
@@ -1075,6 +1216,7 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
 
   RunResult result;
   result.warnings = std::move(scan.skipped);
+  result.unsupported = std::move(scan.unsupported);
   // One asset in flight per thread. Extra ones would wait as spawned tasks, and TBB runs the newest task
   // first, so they would sit (holding their memory budget) until the end of the run.
   // The assets' budget is the limit less what the process holds already (code, libraries, the library's path
@@ -1173,11 +1315,16 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
 
   for (const Pending& p : admission.left()) {
     records[p.index] = base_record(p.path, p.cls);
-    records[p.index]["status"] = "skipped";
-    records[p.index]["error"] = "not processed: the run was stopped before this asset";
+    records[p.index]["status"] = "not_started";
+    records[p.index]["error"] = "not started: the run was stopped before this asset";
     result.cancelled = true;
   }
 
+  // Status and outputs of each asset, kept for the stale-output check (the records move into the report).
+  std::vector<Json> records_for_stale(records.size());
+  for (std::size_t i = 0; i < records.size(); ++i) {
+    records_for_stale[i] = {{"status", records[i]["status"]}, {"outputs", records[i]["outputs"]}};
+  }
   Json assets = Json::array();
   for (std::size_t i = 0; i < records.size(); ++i) {
     const Json& r = records[i];
@@ -1187,11 +1334,26 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
     else if (status == "failed") {
       ++result.failed;
       result.failures.push_back(paths[i] + ": " + r["error"].get<std::string>());
+    } else if (status == "not_started") {
+      ++result.not_started;
     } else {
       ++result.skipped;
+      result.skipped_assets.push_back(paths[i] + ": " + r["error"].get<std::string>());
     }
     if (r["cache_hit"].get<bool>()) ++result.cache_hits;
     assets.push_back(std::move(records[i]));
+  }
+  // Stale outputs are judged only where this run sees every asset: a shard does not know the others' outputs.
+  if (!options.shard) {
+    result.stale_outputs = stale_outputs(options.output_dir, options.input_dir, cache, paths, records_for_stale);
+    if (options.prune) {
+      remove_outputs(options.output_dir, result.stale_outputs);
+      const std::set<std::string> library(paths.begin(), paths.end());
+      for (const std::string& p : cache.entry_paths()) {
+        if (!library.count(p)) cache.remove_entry(p);
+      }
+      result.pruned = true;
+    }
   }
   result.input_triangles = triangles_done;
   result.seconds = seconds_since(t0);
@@ -1203,6 +1365,10 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
   report["jobs"] = jobs;
   report["shard"] = options.shard ? Json(shard_name(*options.shard)) : Json(nullptr);
   report["summary"] = report_summary(assets, result.seconds);
+  if (!result.stale_outputs.empty()) {
+    report["stale_outputs"] = result.stale_outputs;
+    report["stale_outputs_removed"] = result.pruned;
+  }
   report["assets"] = std::move(assets);
   if (options.write_report) {
     result.report_path = options.output_dir / (report_stem + ".json");

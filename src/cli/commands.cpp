@@ -16,6 +16,7 @@
 #include "lodforge/eval/attribute_eval.hpp"
 #include "lodforge/eval/eval.hpp"
 #include "lodforge/io/asset.hpp"
+#include "lodforge/io/file.hpp"
 #include "lodforge/quad/quad_stats.hpp"
 #include "lodforge/simplify/simplify.hpp"
 
@@ -100,6 +101,40 @@ void print_mesh_info(const Mesh& m, std::size_t index) {
   }
 }
 
+// An output the command cannot write (unsupported extension, an existing folder) is refused before any work.
+bool output_writable(const std::string& out) {
+  try {
+    io::format_from_path(out);
+    io::check_output_path(out);
+    return true;
+  } catch (const io::IoError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    set_exit_code(2);
+    return false;
+  }
+}
+
+// SimplifyOptions::validate() names its fields; on the command line the user wrote options.
+std::string with_option_names(const std::string& problem) {
+  static const std::pair<const char*, const char*> kNames[] = {
+      {"target_ratio", "--ratio"},
+      {"max_error_rel", "--max-error"},
+      {"attribute_weights.normal", "--normal-weight"},
+      {"attribute_weights.uv", "--uv-weight"},
+      {"attribute_weights.color", "--color-weight"},
+      {"attribute_weights.skin", "--skin-weight"},
+      {"priority_channel", "--priority-channel"},
+      {"priority_lock", "--priority-lock"},
+      {"skin_weight_threshold", "--skin-threshold"},
+      {"skin_max_distance", "--skin-max-distance"},
+  };
+  for (const auto& [field, option] : kNames) {
+    const std::string f(field);
+    if (problem.rfind(f + " ", 0) == 0) return option + problem.substr(f.size());
+  }
+  return problem;
+}
+
 }  // namespace
 
 const char* version() { return "0.1.0"; }
@@ -156,6 +191,7 @@ void register_convert(CLI::App& app) {
   cmd->add_option("input", *in, "input asset")->required();
   cmd->add_option("output", *out, "output asset (written atomically)")->required();
   cmd->callback([in, out] {
+    if (!output_writable(*out)) return;
     try {
       const io::Asset a = io::load_asset(*in);
       io::save_asset(a, *out);
@@ -246,30 +282,27 @@ void register_simplify(CLI::App& app) {
       return;
     }
     if (const auto problems = opt.validate(); !problems.empty()) {
-      for (const std::string& p : problems) std::fprintf(stderr, "error: %s\n", p.c_str());
+      for (const std::string& p : problems) std::fprintf(stderr, "error: %s\n", with_option_names(p).c_str());
       set_exit_code(2);
       return;
     }
+    if (!output_writable(a->out)) return;
     try {
       io::Asset asset = io::load_asset(a->in);
-      // A relative budget is of the asset's diagonal, for every mesh of it.
-      Bounds3 asset_bounds;
-      for (const Mesh& m : asset.meshes) {
-        const Bounds3 b = compute_bounds(m);
-        if (!b.empty()) {
-          asset_bounds.add(b.min);
-          asset_bounds.add(b.max);
-        }
-      }
-      const double diagonal = asset_bounds.diagonal();
-      if (opt.max_error_rel >= 0.0) {
-        opt.max_error_abs = opt.max_error_rel * diagonal;
-        opt.max_error_rel = -1.0;
-      }
-      auto percent = [&](double x) { return diagonal > 0.0 ? 100.0 * x / diagonal : 0.0; };
+      // A relative budget is of the asset's diagonal as the scene shows it (glTF node transforms applied), for
+      // every mesh of it; each mesh gets it in its own units.
+      const double world_diagonal = io::world_bounds(asset).diagonal();
+      const double max_error_rel = opt.max_error_rel;
       for (std::size_t i = 0; i < asset.meshes.size(); ++i) {
         const Mesh& src = asset.meshes[i];
-        SimplifyResult r = simplify(src, opt);
+        const double diagonal = world_diagonal / io::world_scale(asset, i);
+        auto percent = [&](double x) { return diagonal > 0.0 ? 100.0 * x / diagonal : 0.0; };
+        SimplifyOptions mesh_opt = opt;
+        if (max_error_rel >= 0.0) {
+          mesh_opt.max_error_abs = max_error_rel * diagonal;
+          mesh_opt.max_error_rel = -1.0;
+        }
+        SimplifyResult r = simplify(src, mesh_opt);
         std::printf("mesh %zu: %zu -> %zu triangles, QEM error %.4f%% of diagonal (a ranking, not a bound), "
                     "stopped: %s, %.1f ms\n",
                     i, r.triangles_before, r.triangles_after, percent(r.qem_error_abs),
@@ -346,25 +379,8 @@ void register_eval(CLI::App& app) {
     try {
       const io::Asset orig = io::load_asset(a->first);
       const io::Asset simp = io::load_asset(a->second);
-      // Meshes of an asset are measured as one surface.
-      auto merged = [](const io::Asset& asset) {
-        Mesh all;
-        all.materials.push_back({});
-        for (const Mesh& m : asset.meshes) {
-          const auto base = static_cast<std::uint32_t>(all.vertex_count());
-          all.positions.insert(all.positions.end(), m.positions.begin(), m.positions.end());
-          for (std::size_t f = 0; f < m.face_count(); ++f) {
-            std::vector<std::uint32_t> w;
-            for (std::uint32_t c = m.face_offsets[f]; c < m.face_offsets[f + 1]; ++c) {
-              all.wedge_vertex.push_back(base + m.corner_vertex(c));
-              w.push_back(static_cast<std::uint32_t>(all.wedge_vertex.size() - 1));
-            }
-            all.add_face(w.data(), w.size());
-          }
-        }
-        return all;
-      };
-      const EvalResult r = evaluate(merged(orig), merged(simp), *opt);
+      // Meshes of an asset are measured as one surface, placed as the scene shows them (glTF node transforms).
+      const EvalResult r = evaluate(io::world_surface(orig), io::world_surface(simp), *opt);
       // Attributes, UVs and skinning per mesh (meshes pair up by index when both assets have as many).
       std::vector<AttributeEvalResult> attrs;
       if (orig.meshes.size() == simp.meshes.size()) {

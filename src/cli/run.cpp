@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -127,6 +128,8 @@ struct RunArgs {
   unsigned jobs = 0;
   bool force = false;
   bool strict = false;
+  bool dry_run = false;
+  bool prune = false;
   double asset_timeout_s = -1;  // < 0: the config's defaults.asset_timeout_s
 };
 
@@ -144,10 +147,12 @@ std::optional<batch::BatchConfig> load_config_or_report(const std::string& file)
 
 void print_summary(const batch::RunResult& r) {
   const Json& s = r.report["summary"];
-  std::printf("lodforge run: %llu assets: %llu ok (%llu cache hits), %llu failed, %llu skipped\n",
+  const unsigned long long not_started = s.value("not_started", 0ull);
+  std::printf("lodforge run: %llu assets: %llu ok (%llu cache hits), %llu failed, %llu skipped%s\n",
               s["assets"].get<unsigned long long>(), s["succeeded"].get<unsigned long long>(),
               s["cache_hits"].get<unsigned long long>(), s["failed"].get<unsigned long long>(),
-              s["skipped"].get<unsigned long long>());
+              s["skipped"].get<unsigned long long>(),
+              not_started ? (", " + std::to_string(not_started) + " not started").c_str() : "");
   std::printf("  %llu LODs, %s input -> %s output triangles, %.2f s with %llu jobs\n",
               s["lods"].get<unsigned long long>(), human_count(s["input_triangles"].get<double>()).c_str(),
               human_count(s["output_triangles"].get<double>()).c_str(), s["seconds"].get<double>(),
@@ -162,23 +167,120 @@ void print_summary(const batch::RunResult& r) {
               s["lods"].get<unsigned long long>(), missed, missed > 0 ? " (report.json: lods[].budget.reasons)" : "");
 }
 
+// One line for the files of no supported format: a count per extension and the first few names.
+void warn_unsupported(const std::vector<std::string>& files) {
+  if (files.empty()) return;
+  constexpr std::size_t kNamesShown = 10;  // a library can hold thousands of textures-to-be or notes
+  std::map<std::string, std::size_t> by_extension;
+  for (const std::string& f : files) {
+    const std::string ext = fs::path(f).extension().string();
+    ++by_extension[ext.empty() ? "(no extension)" : ext];
+  }
+  std::string counts, names;
+  for (const auto& [ext, n] : by_extension) counts += (counts.empty() ? "" : ", ") + ext + " " + std::to_string(n);
+  for (std::size_t i = 0; i < files.size() && i < kNamesShown; ++i) names += (i ? ", " : "") + files[i];
+  if (files.size() > kNamesShown) names += ", and " + std::to_string(files.size() - kNamesShown) + " more";
+  std::fprintf(stderr, "warning: %zu file(s) of the library are not in a format lodforge reads and were ignored (%s): %s\n",
+               files.size(), counts.c_str(), names.c_str());
+}
+
+// `run --dry-run`: one line per asset, then the counts; nothing is written.
+void print_plan(const batch::Plan& plan) {
+  std::size_t rebuild = 0, fresh = 0, skipped = 0;
+  for (const batch::PlannedAsset& a : plan.assets) {
+    if (a.class_name.empty()) {
+      ++skipped;
+      std::printf("%s: skipped: %s\n", a.path.c_str(), a.reason.c_str());
+      continue;
+    }
+    std::string lods;
+    for (std::size_t k = 0; k < a.lods.size(); ++k) {
+      lods += (k ? ", " : "") + std::string("LOD") + std::to_string(k + 1) + " " + a.lods[k];
+    }
+    a.rebuild ? ++rebuild : ++fresh;
+    std::printf("%s: class %s; %s; %s\n", a.path.c_str(), a.class_name.c_str(), lods.c_str(),
+                a.rebuild ? ("rebuild (" + a.reason + ")").c_str() : "up to date");
+  }
+  std::printf("lodforge run --dry-run: %zu assets: %zu would be rebuilt, %zu up to date, %zu skipped; nothing "
+              "written\n",
+              plan.assets.size(), rebuild, fresh, skipped);
+}
+
+// Stale outputs: removed with --prune (each listed), otherwise counted with the first few named.
+void report_stale(const batch::RunResult& r, const fs::path& output) {
+  if (r.stale_outputs.empty()) return;
+  if (r.pruned) {
+    std::printf("pruned %zu output file(s) the library and config no longer produce:\n", r.stale_outputs.size());
+    for (const std::string& f : r.stale_outputs) std::printf("  removed %s\n", (output / f).string().c_str());
+    return;
+  }
+  constexpr std::size_t kNamesShown = 10;
+  std::string names;
+  for (std::size_t i = 0; i < r.stale_outputs.size() && i < kNamesShown; ++i) {
+    names += (i ? ", " : "") + r.stale_outputs[i];
+  }
+  if (r.stale_outputs.size() > kNamesShown) names += ", and " + std::to_string(r.stale_outputs.size() - kNamesShown) + " more";
+  std::fprintf(stderr,
+               "warning: %zu file(s) in %s are no longer produced by the library and config (report.json: "
+               "stale_outputs; --prune removes them): %s\n",
+               r.stale_outputs.size(), output.string().c_str(), names.c_str());
+}
+
+// The smallest --memory-limit: below it even one small asset does not fit (it exists for tests).
+constexpr std::uint64_t kMinMemoryLimit = 16ull << 20;
+
 void run_command(const RunArgs& a) {
   std::optional<batch::BatchConfig> config = load_config_or_report(a.config);
   if (!config) return set_exit_code(2);
   if (a.asset_timeout_s >= 0) config->limits.asset_timeout_s = a.asset_timeout_s;
   batch::RunOptions options{
       .config_file = a.config, .input_dir = a.input, .output_dir = a.output, .jobs = a.jobs, .force = a.force};
+  options.prune = a.prune;
+  if (a.prune && !a.shard.empty()) {
+    std::fprintf(stderr, "error: --prune cannot be used with --shard: a shard does not see the other shards' "
+                         "outputs\n");
+    return set_exit_code(2);
+  }
   try {
     if (!a.shard.empty()) options.shard = batch::parse_shard(a.shard);
-    if (!a.memory_limit.empty()) options.memory_limit_bytes = batch::parse_byte_size(a.memory_limit);
   } catch (const std::invalid_argument& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
     return set_exit_code(2);
   }
+  try {
+    if (!a.memory_limit.empty()) options.memory_limit_bytes = batch::parse_byte_size(a.memory_limit);
+  } catch (const std::invalid_argument& e) {
+    std::fprintf(stderr, "error: --memory-limit: %s\n", e.what());
+    return set_exit_code(2);
+  }
+  if (!a.memory_limit.empty() && options.memory_limit_bytes < kMinMemoryLimit) {
+    std::fprintf(stderr, "error: --memory-limit %s is below the smallest limit, 16M\n", a.memory_limit.c_str());
+    return set_exit_code(2);
+  }
+  if (const unsigned cores = std::thread::hardware_concurrency(); cores > 0 && a.jobs > cores) {
+    std::fprintf(stderr,
+                 "warning: --jobs %u is more than the %u cores of this machine: the extra threads share the cores "
+                 "and each holds an asset in memory\n",
+                 a.jobs, cores);
+  }
   std::error_code ec;
   if (!fs::is_directory(a.input, ec)) {
-    std::fprintf(stderr, "error: %s: no such folder (--input must be the library folder)\n", a.input.c_str());
+    std::fprintf(stderr, "error: %s: %s (--input must be the library folder)\n", a.input.c_str(),
+                 fs::exists(a.input, ec) ? "is a file, not a folder" : "no such folder");
     return set_exit_code(2);
+  }
+
+  if (a.dry_run) {
+    try {
+      const batch::Plan plan = batch::plan_batch(*config, options);
+      for (const std::string& w : plan.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
+      warn_unsupported(plan.unsupported);
+      print_plan(plan);
+    } catch (const io::IoError& e) {
+      std::fprintf(stderr, "error: %s\n", e.what());
+      set_exit_code(2);
+    }
+    return;
   }
 
   Progress progress(::isatty(::fileno(stderr)) == 1);
@@ -203,7 +305,13 @@ void run_command(const RunArgs& a) {
   std::signal(SIGTERM, SIG_DFL);
   progress.finish();
   for (const std::string& w : r.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
+  warn_unsupported(r.unsupported);
   print_summary(r);
+  report_stale(r, a.output);
+  if (!r.skipped_assets.empty()) {
+    std::fprintf(stderr, "%zu asset(s) skipped:\n", r.skipped_assets.size());
+    for (const std::string& f : r.skipped_assets) std::fprintf(stderr, "  %s\n", f.c_str());
+  }
   if (!r.failures.empty()) {
     std::fprintf(stderr, "%zu asset(s) failed:\n", r.failures.size());
     for (const std::string& f : r.failures) std::fprintf(stderr, "  %s\n", f.c_str());
@@ -211,7 +319,7 @@ void run_command(const RunArgs& a) {
   }
   if (a.strict && r.report["summary"].value("lods_missed", 0ull) > 0) set_exit_code(1);
   if (r.cancelled && g_cancel) {
-    std::fprintf(stderr, "interrupted: the assets not reported were not processed; run again to resume\n");
+    std::fprintf(stderr, "interrupted: %zu asset(s) not started; run again to resume\n", r.not_started);
     set_exit_code(kExitInterrupted);
   }
 }
@@ -284,6 +392,11 @@ void register_run(CLI::App& app) {
                   "K/N: process only the assets whose path hashes to K mod N (K is 0-based); the report goes to "
                   "report.shard-K-of-N.json, see merge-reports");
   cmd->add_flag("--force", a->force, "ignore the cache: rebuild every asset");
+  cmd->add_flag("--dry-run", a->dry_run,
+                "print each asset's class, LOD targets and whether it would be rebuilt; write nothing");
+  cmd->add_flag("--prune", a->prune,
+                "remove (and list) output files the library and config no longer produce; without it they are "
+                "only reported");
   cmd->add_flag("--strict", a->strict,
                 "exit 1 when any LOD misses its budget (target not reached, error budget not met, or not 10% "
                 "smaller than the level before)");
@@ -323,6 +436,11 @@ void register_merge_reports(CLI::App& app) {
         const Json j = Json::parse(io::read_file(f), nullptr, false);
         if (j.is_discarded()) {
           std::fprintf(stderr, "error: %s: not valid JSON\n", f.c_str());
+          return set_exit_code(2);
+        }
+        if (const std::vector<std::string> problems = batch::check_report(j); !problems.empty()) {
+          std::fprintf(stderr, "error: %s: not a lodforge report: %s%s\n", f.c_str(), problems.front().c_str(),
+                       problems.size() > 1 ? (" (and " + std::to_string(problems.size() - 1) + " more)").c_str() : "");
           return set_exit_code(2);
         }
         reports.push_back(j);

@@ -49,6 +49,8 @@ struct GltfDocument {
   // [mesh]: Mesh::formats as loaded. The writer stores an attribute the way its own source accessor stored it,
   // unless the caller changed the mesh-wide format since loading.
   std::vector<std::map<std::string, AttributeFormat>> loaded_formats;
+  // A .gltf whose buffers were all data: URIs: a .gltf written from it embeds its buffer too (no .bin file).
+  bool embedded_buffers = false;
 };
 
 namespace gltf {

@@ -1396,6 +1396,82 @@ class MeshConverter {
   std::string label_;
 };
 
+using Matrix4 = std::array<double, 16>;  // column-major, as glTF stores it
+
+Matrix4 multiply(const Matrix4& a, const Matrix4& b) {
+  Matrix4 r{};
+  for (int c = 0; c < 4; ++c) {
+    for (int row = 0; row < 4; ++row) {
+      double v = 0;
+      for (int k = 0; k < 4; ++k) v += a[k * 4 + row] * b[c * 4 + k];
+      r[c * 4 + row] = v;
+    }
+  }
+  return r;
+}
+
+// A node's local transform: its matrix, else translation * rotation * scale.
+Matrix4 local_transform(const tinygltf::Node& n) {
+  if (n.matrix.size() == 16) {
+    Matrix4 m;
+    std::copy(n.matrix.begin(), n.matrix.end(), m.begin());
+    return m;
+  }
+  const double x = n.rotation.size() == 4 ? n.rotation[0] : 0, y = n.rotation.size() == 4 ? n.rotation[1] : 0;
+  const double z = n.rotation.size() == 4 ? n.rotation[2] : 0, w = n.rotation.size() == 4 ? n.rotation[3] : 1;
+  const double sx = n.scale.size() == 3 ? n.scale[0] : 1, sy = n.scale.size() == 3 ? n.scale[1] : 1;
+  const double sz = n.scale.size() == 3 ? n.scale[2] : 1;
+  Matrix4 m{};
+  // Columns of the rotation matrix of the unit quaternion (x, y, z, w), each scaled by its axis' scale.
+  m[0] = (1 - 2 * (y * y + z * z)) * sx, m[1] = 2 * (x * y + z * w) * sx, m[2] = 2 * (x * z - y * w) * sx;
+  m[4] = 2 * (x * y - z * w) * sy, m[5] = (1 - 2 * (x * x + z * z)) * sy, m[6] = 2 * (y * z + x * w) * sy;
+  m[8] = 2 * (x * z + y * w) * sz, m[9] = 2 * (y * z - x * w) * sz, m[10] = (1 - 2 * (x * x + y * y)) * sz;
+  m[12] = n.translation.size() == 3 ? n.translation[0] : 0;
+  m[13] = n.translation.size() == 3 ? n.translation[1] : 0;
+  m[14] = n.translation.size() == 3 ? n.translation[2] : 0;
+  m[15] = 1;
+  return m;
+}
+
+// Per mesh, the world transforms of the nodes that show it (check_structure has ruled out cycles and bad
+// indices). Roots: the default scene's nodes, else the first scene's, else every node without a parent.
+std::vector<std::vector<Matrix4>> mesh_world_transforms(const tinygltf::Model& model) {
+  std::vector<std::vector<Matrix4>> out(model.meshes.size());
+  std::vector<int> roots;
+  const int scene = model.defaultScene >= 0 ? model.defaultScene : (model.scenes.empty() ? -1 : 0);
+  if (scene >= 0 && scene < static_cast<int>(model.scenes.size())) {
+    roots = model.scenes[static_cast<std::size_t>(scene)].nodes;
+  } else {
+    std::vector<bool> child(model.nodes.size(), false);
+    for (const tinygltf::Node& n : model.nodes) {
+      for (int c : n.children) {
+        if (c >= 0 && c < static_cast<int>(child.size())) child[static_cast<std::size_t>(c)] = true;
+      }
+    }
+    for (std::size_t i = 0; i < child.size(); ++i) {
+      if (!child[i]) roots.push_back(static_cast<int>(i));
+    }
+  }
+  constexpr Matrix4 kIdentity{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  std::vector<std::pair<int, Matrix4>> stack;
+  for (auto it = roots.rbegin(); it != roots.rend(); ++it) stack.emplace_back(*it, kIdentity);
+  std::size_t visits = 0;
+  while (!stack.empty()) {
+    const auto [index, parent] = stack.back();
+    stack.pop_back();
+    // A node listed twice (two parents, or a root that is also a child) is walked each time; the bound keeps a
+    // hostile diamond-shaped hierarchy from growing without end.
+    if (index < 0 || index >= static_cast<int>(model.nodes.size()) || ++visits > 16 * model.nodes.size() + 16) continue;
+    const tinygltf::Node& n = model.nodes[static_cast<std::size_t>(index)];
+    const Matrix4 world = multiply(parent, local_transform(n));
+    if (n.mesh >= 0 && n.mesh < static_cast<int>(out.size())) {
+      out[static_cast<std::size_t>(n.mesh)].push_back(n.skin >= 0 ? kIdentity : world);
+    }
+    for (auto c = n.children.rbegin(); c != n.children.rend(); ++c) stack.emplace_back(*c, world);
+  }
+  return out;
+}
+
 }  // namespace
 
 Asset read_gltf(const std::filesystem::path& path, const LoadOptions& options) {
@@ -1432,9 +1508,17 @@ Asset read_gltf(const std::filesystem::path& path, const LoadOptions& options) {
     doc.loaded_formats.push_back(asset.meshes.back().formats);
   }
 
+  asset.mesh_transforms = mesh_world_transforms(doc.model);
+
   // The writer rebuilds the buffers; dropping their URIs frees the base64 text of embedded buffers.
   if (auto it = doc.json.find("buffers"); it != doc.json.end()) {
-    for (auto& b : *it) b.erase("uri");
+    doc.embedded_buffers = !glb && it->is_array() && !it->empty();
+    for (auto& b : *it) {
+      const auto uri = b.find("uri");
+      const bool data = uri != b.end() && uri->is_string() && uri->get<std::string>().rfind("data:", 0) == 0;
+      doc.embedded_buffers = doc.embedded_buffers && data;
+      b.erase("uri");
+    }
   }
   asset.gltf = std::make_shared<const GltfDocument>(std::move(doc));
   return asset;

@@ -953,6 +953,20 @@ bool same_folder(const std::filesystem::path& a, const std::filesystem::path& b)
 }
 
 // write_gltf, and save_gltf_lods when `lods` is set.
+// RFC 4648 base64 with padding, for data: URIs.
+std::string base64(std::string_view bytes) {
+  static constexpr char kDigits[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  out.reserve((bytes.size() + 2) / 3 * 4);
+  for (std::size_t i = 0; i < bytes.size(); i += 3) {
+    const std::size_t n = std::min<std::size_t>(3, bytes.size() - i);
+    std::uint32_t v = 0;
+    for (std::size_t k = 0; k < 3; ++k) v = v << 8 | (k < n ? static_cast<unsigned char>(bytes[i + k]) : 0u);
+    for (std::size_t k = 0; k < 4; ++k) out.push_back(k <= n ? kDigits[(v >> (18 - 6 * k)) & 63] : '=');
+  }
+  return out;
+}
+
 void write_gltf_document(const Asset& asset, const LodChain* lods, const std::filesystem::path& path,
                          const SaveOptions& options) {
   check_output_path(path);
@@ -1040,6 +1054,7 @@ void write_gltf_document(const Asset& asset, const LodChain* lods, const std::fi
   set_or_erase("accessors", std::move(accessors));
   set_or_erase("bufferViews", std::move(views));
   const std::string bin_name = path.stem().string() + ".bin";
+  const bool embed = !glb && source && source->embedded_buffers;  // an embedded source stays self-contained
   if (!bin.empty()) {
     OrderedJson buffer = OrderedJson::object();
     if (const OrderedJson& old = json_array(doc, "buffers"); !old.empty() && old[0].is_object()) {
@@ -1048,7 +1063,7 @@ void write_gltf_document(const Asset& asset, const LodChain* lods, const std::fi
       }
     }
     buffer["byteLength"] = bin.size();
-    if (!glb) buffer["uri"] = gltf::uri_encode(bin_name);
+    if (!glb) buffer["uri"] = embed ? "data:application/octet-stream;base64," + base64(bin) : gltf::uri_encode(bin_name);
     doc["buffers"] = OrderedJson::array({std::move(buffer)});
   } else {
     doc.erase("buffers");
@@ -1070,7 +1085,7 @@ void write_gltf_document(const Asset& asset, const LodChain* lods, const std::fi
 
   const auto handler = OrderedJson::error_handler_t::replace;
   if (!glb) {
-    if (!bin.empty()) write_file_atomic(out_folder / bin_name, bin);
+    if (!bin.empty() && !embed) write_file_atomic(out_folder / bin_name, bin);
     std::string json = doc.dump(options.pretty_json ? 2 : -1, ' ', false, handler);
     json.push_back('\n');
     write_file_atomic(path, json);

@@ -162,7 +162,16 @@ Asset read_stl(const std::filesystem::path& path, std::string_view bytes, const 
   } else {
     binary = !starts_with_solid(bytes);
   }
-  Mesh mesh = binary ? read_binary(ctx, bytes, options, warnings) : read_ascii(ctx, bytes, options);
+  Mesh mesh;
+  try {
+    mesh = binary ? read_binary(ctx, bytes, options, warnings) : read_ascii(ctx, bytes, options);
+  } catch (const IoError& e) {
+    // Say which reading failed: random bytes read as binary STL otherwise only complain about a count.
+    throw IoError(path, std::string("not a valid STL: ") +
+                            (binary ? "read as binary STL (it does not start with 'solid'): "
+                                    : "read as ASCII STL (it starts with 'solid'): ") +
+                            e.problem());
+  }
   parse::finish_mesh(mesh);
   Asset asset = parse::make_asset(path, Format::stl, std::move(mesh));
   asset.binary = binary;

@@ -67,7 +67,7 @@ inline void check_declared_count(const ErrorContext& ctx, std::string_view what,
                                  const LoadOptions& options) {
   if (count > options.max_elements) {
     ctx.fail("header declares " + std::to_string(count) + " " + std::string(what) + ", more than the limit of " +
-             std::to_string(options.max_elements) + " (LoadOptions.max_elements)");
+             std::to_string(options.max_elements) + " that one file may hold");
   }
   if (count > kMaxIndexableElements) {
     ctx.fail("header declares " + std::to_string(count) + " " + std::string(what) +
@@ -86,7 +86,7 @@ inline void check_element_cap(const ErrorContext& ctx, std::string_view what, st
                               const LoadOptions& options) {
   if (count > options.max_elements) {
     ctx.fail("more than " + std::to_string(options.max_elements) + " " + std::string(what) +
-             " (LoadOptions.max_elements)");
+             ", the most one file may hold");
   }
   if (count > kMaxIndexableElements) ctx.fail("more " + std::string(what) + " than 32-bit indices can address");
 }

@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cerrno>
 #include <chrono>
@@ -270,8 +271,11 @@ TEST(BatchCli, BadGltfFailsWithTheMessageOfTheSingleFileCommands) {
   ASSERT_EQ(info.exit_code, 2) << info.output;
   const auto at = info.output.find("error: ");
   ASSERT_NE(at, std::string::npos) << info.output;
-  const std::string message = info.output.substr(at + 7, info.output.find('\n', at) - at - 7);
+  std::string message = info.output.substr(at + 7, info.output.find('\n', at) - at - 7);
   EXPECT_NE(message.find("out of range"), std::string::npos) << message;
+  // The run's log and report name the asset by its library path, so the message follows without the file's.
+  ASSERT_EQ(message.rfind(bad.string() + ": ", 0), 0u) << message;
+  message = message.substr(bad.string().size() + 2);
 
   const CliResult r = run_cli(run_args(testlib::write_config(dir), lib.root, dir / "out"));
   EXPECT_EQ(r.exit_code, 1) << r.output;
@@ -283,6 +287,161 @@ TEST(BatchCli, BadGltfFailsWithTheMessageOfTheSingleFileCommands) {
     }
   }
   EXPECT_TRUE(fs::exists(dir / "out/props/prop_0_LOD1.obj")) << "the others completed";
+}
+
+TEST(BatchCli, MemoryLimitBelowSixteenMegabytesIsRefused) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_memory_floor");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 4);
+  const fs::path config = testlib::write_config(dir);
+  const CliResult low = run_cli(run_args(config, lib.root, dir / "out", "--memory-limit 15M"));
+  EXPECT_EQ(low.exit_code, 2);
+  EXPECT_EQ(low.output, "error: --memory-limit 15M is below the smallest limit, 16M\n");
+  EXPECT_FALSE(fs::exists(dir / "out")) << "nothing is written";
+  const CliResult bad = run_cli(run_args(config, lib.root, dir / "out", "--memory-limit lots"));
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.output.find("error: --memory-limit: 'lots' is not a byte size"), std::string::npos) << bad.output;
+  const CliResult floor = run_cli(run_args(config, lib.root, dir / "out", "--memory-limit 16M"));
+  EXPECT_EQ(floor.exit_code, 0) << floor.output;
+}
+
+TEST(BatchCli, JobsBeyondTheCoresAreWarnedAbout) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_jobs_warning");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 3);
+  const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+  const CliResult r =
+      run_cli(run_args(testlib::write_config(dir), lib.root, dir / "out", "--jobs " + std::to_string(cores + 1)));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("warning: --jobs " + std::to_string(cores + 1) + " is more than the " +
+                          std::to_string(cores) + " cores of this machine"),
+            std::string::npos)
+      << r.output;
+  const CliResult fits = run_cli(run_args(testlib::write_config(dir), lib.root, dir / "out2", "--jobs 1"));
+  EXPECT_EQ(fits.output.find("warning: --jobs"), std::string::npos) << fits.output;
+}
+
+TEST(BatchCli, UnsupportedFilesAreListedOnceWithACount) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_unsupported");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 5);
+  std::ofstream(lib.root / "props/crate.fbx") << "fbx";
+  std::ofstream(lib.root / "props/barrel.fbx") << "fbx";
+  std::ofstream(lib.root / "notes.txt") << "notes";
+  std::ofstream(lib.root / "props/crate.png") << "a texture: not worth a warning";
+  const CliResult r = run_cli(run_args(testlib::write_config(dir), lib.root, lib.root / "out"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  const std::string line =
+      "warning: 3 file(s) of the library are not in a format lodforge reads and were ignored (.fbx 2, .txt 1): "
+      "notes.txt, props/barrel.fbx, props/crate.fbx\n";
+  EXPECT_NE(r.output.find(line), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("ignored", r.output.find(line) + line.size()), std::string::npos) << "listed once";
+  // The report of a run into a folder inside the library is not a file of the library.
+  const CliResult again = run_cli(run_args(testlib::write_config(dir), lib.root, lib.root / "out"));
+  EXPECT_NE(again.output.find(line), std::string::npos) << again.output;
+}
+
+TEST(BatchCli, EmptyLibraryIsAnErrorAndWritesNothing) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_empty_library");
+  fs::create_directories(dir / "lib/sub");
+  const CliResult empty = run_cli(run_args(testlib::write_config(dir), dir / "lib", dir / "out"));
+  EXPECT_EQ(empty.exit_code, 2);
+  EXPECT_NE(empty.output.find("error: " + (dir / "lib").string() + ": the library holds no asset files"),
+            std::string::npos)
+      << empty.output;
+  EXPECT_FALSE(fs::exists(dir / "out"));
+  std::ofstream(dir / "lib/sub/model.fbx") << "fbx";
+  const CliResult only_fbx = run_cli(run_args(testlib::write_config(dir), dir / "lib", dir / "out"));
+  EXPECT_EQ(only_fbx.exit_code, 2);
+  EXPECT_NE(only_fbx.output.find("no asset files (.gltf .glb .obj .ply .off .stl), only 1 file(s) of other types"),
+            std::string::npos)
+      << only_fbx.output;
+  const CliResult file = run_cli(run_args(testlib::write_config(dir), dir / "lib/sub/model.fbx", dir / "out"));
+  EXPECT_NE(file.output.find("model.fbx: is a file, not a folder (--input must be the library folder)"),
+            std::string::npos)
+      << file.output;
+}
+
+TEST(BatchCli, SkippedAssetsAreNamed) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_skipped_named");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 5);
+  fs::create_directories(lib.root / "misc");
+  fs::copy_file(lib.root / lib.files.front(), lib.root / "misc" / fs::path(lib.files.front()).filename());
+  const CliResult r = run_cli(run_args(testlib::write_config(dir), lib.root, dir / "out"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  const std::string name = "misc/" + fs::path(lib.files.front()).filename().string();
+  EXPECT_NE(r.output.find("1 asset(s) skipped:\n  " + name + ": "), std::string::npos) << r.output;
+}
+
+TEST(BatchCli, FailureMessagesGiveThePathOnce) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_path_once");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 5);
+  std::ofstream(lib.root / "props/broken.obj") << "v 0 0 0\nv 1 0 0\nf 1 2 9\n";
+  const CliResult r = run_cli(run_args(testlib::write_config(dir), lib.root, dir / "out"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("  props/broken.obj: line 3: "), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find((lib.root / "props/broken.obj").string()), std::string::npos) << r.output;
+}
+
+TEST(BatchCli, MergeReportsNamesAFileThatIsNoReport) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_merge_not_report");
+  const fs::path config = testlib::write_config(dir);
+  const CliResult r = run_cli("merge-reports " + q(dir / "m.json") + " " + q(config));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("error: " + config.string() + ": not a lodforge report: "), std::string::npos) << r.output;
+}
+
+TEST(BatchCli, DryRunPrintsClassTargetsAndRebuildsAndWritesNothing) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_dry_run");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 5);
+  const fs::path config = testlib::write_config(dir);
+  const CliResult dry = run_cli(run_args(config, lib.root, dir / "out", "--dry-run"));
+  EXPECT_EQ(dry.exit_code, 0) << dry.output;
+  EXPECT_FALSE(fs::exists(dir / "out"));
+  const std::string prop = *std::find_if(lib.files.begin(), lib.files.end(),
+                                         [](const std::string& p) { return p.rfind("props/", 0) == 0; });
+  EXPECT_NE(dry.output.find(prop + ": class props; LOD1 ratio 0.5, LOD2 ratio 0.25, LOD3 ratio 0.1; rebuild (not "
+                                   "built yet)\n"),
+            std::string::npos)
+      << dry.output;
+  const std::string n = std::to_string(lib.files.size());
+  EXPECT_NE(dry.output.find("lodforge run --dry-run: " + n + " assets: " + n +
+                            " would be rebuilt, 0 up to date, 0 skipped; nothing written"),
+            std::string::npos)
+      << dry.output;
+  ASSERT_EQ(run_cli(run_args(config, lib.root, dir / "out")).exit_code, 0);
+  const CliResult again = run_cli(run_args(config, lib.root, dir / "out", "--dry-run"));
+  EXPECT_NE(again.output.find(prop + ": class props; LOD1 ratio 0.5, LOD2 ratio 0.25, LOD3 ratio 0.1; up to date\n"),
+            std::string::npos)
+      << again.output;
+}
+
+TEST(BatchCli, StaleOutputsAreReportedAndPrunedWithPrune) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_prune");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 5);
+  const fs::path config = testlib::write_config(dir);
+  ASSERT_EQ(run_cli(run_args(config, lib.root, dir / "out")).exit_code, 0);
+  const std::string prop = *std::find_if(lib.files.begin(), lib.files.end(), [](const std::string& p) {
+    return p.rfind("props/", 0) == 0 && fs::path(p).extension() == ".obj";
+  });
+  const fs::path lod1 = dir / "out" / fs::path(prop).parent_path() /
+                        (fs::path(prop).stem().string() + "_LOD1.obj");
+  ASSERT_TRUE(fs::exists(lod1));
+  fs::remove(lib.root / prop);
+  const CliResult listed = run_cli(run_args(config, lib.root, dir / "out"));
+  EXPECT_EQ(listed.exit_code, 0) << listed.output;
+  EXPECT_NE(listed.output.find("warning: 3 file(s) in " + (dir / "out").string() +
+                               " are no longer produced by the library and config"),
+            std::string::npos)
+      << listed.output;
+  EXPECT_TRUE(fs::exists(lod1));
+  const CliResult pruned = run_cli(run_args(config, lib.root, dir / "out", "--prune"));
+  EXPECT_EQ(pruned.exit_code, 0) << pruned.output;
+  EXPECT_NE(pruned.output.find("pruned 3 output file(s) the library and config no longer produce:\n  removed " +
+                               lod1.string() + "\n"),
+            std::string::npos)
+      << pruned.output;
+  EXPECT_FALSE(fs::exists(lod1));
+  const CliResult sharded = run_cli(run_args(config, lib.root, dir / "out", "--prune --shard 0/2"));
+  EXPECT_EQ(sharded.exit_code, 2);
+  EXPECT_NE(sharded.output.find("--prune cannot be used with --shard"), std::string::npos) << sharded.output;
 }
 
 TEST(BatchCli, SymbolicLinkLoopIsSkippedWithAWarning) {
@@ -396,7 +555,14 @@ TEST(BatchCli, CtrlCFinishesAssetsInFlightWritesTheReportAndExits130) {
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 130) << lodforge::io::read_file(dir / "sigint.log");
   const Json report = Json::parse(lodforge::io::read_file(dir / "out/report.json"));
-  EXPECT_GT(report["summary"]["skipped"].get<std::size_t>(), 0u);
+  const std::size_t not_started = report["summary"]["not_started"].get<std::size_t>();
+  EXPECT_GT(not_started, 0u);
+  EXPECT_EQ(report["summary"]["skipped"].get<std::size_t>(), 0u) << "unstarted assets are not \"skipped\"";
+  const std::string log = lodforge::io::read_file(dir / "sigint.log");
+  EXPECT_NE(log.find(", " + std::to_string(not_started) + " not started\n"), std::string::npos) << log;
+  EXPECT_NE(log.find("interrupted: " + std::to_string(not_started) + " asset(s) not started; run again to resume"),
+            std::string::npos)
+      << log;
   EXPECT_EQ(report["summary"]["succeeded"].get<std::size_t>(), cache_entries(dir / "out"));
   EXPECT_TRUE(testlib::leftovers(dir / "out").empty());
   EXPECT_EQ(run_cli(run_args(config, lib.root, dir / "out")).exit_code, 0);

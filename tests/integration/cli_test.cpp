@@ -1,10 +1,14 @@
 // End-to-end tests of the `lodforge` command: exit codes, messages, and that bad input writes nothing.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "test_support.hpp"
 
@@ -38,6 +42,8 @@ std::string triangle_gltf(const std::string& max) {
     "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA="}]})";
 }
 
+void write_scaled_grid(const fs::path& file, float scale);
+
 TEST(Cli, HelpListsSubcommandsAndExitCodes) {
   const CliRun r = run_cli("--help");
   EXPECT_EQ(r.exit_code, 0);
@@ -47,6 +53,77 @@ TEST(Cli, HelpListsSubcommandsAndExitCodes) {
 }
 
 TEST(Cli, UnknownSubcommandIsUsageError) { EXPECT_EQ(run_cli("frobnicate").exit_code, 2); }
+
+TEST(Cli, UnknownCommandsAndOptionsAreNamedWithAGuess) {
+  const CliRun option = run_cli("run --confg x.json --input a --output b");
+  EXPECT_EQ(option.exit_code, 2);
+  EXPECT_EQ(option.output.rfind("error: unknown option --confg (did you mean --config?)", 0), 0u) << option.output;
+  const CliRun command = run_cli("rnu --config x.json");
+  EXPECT_EQ(command.exit_code, 2);
+  EXPECT_EQ(command.output, "error: unknown command rnu (did you mean run?)\n");
+  const CliRun far = run_cli("frobnicate");
+  EXPECT_NE(far.output.find("unknown command frobnicate (commands: "), std::string::npos) << far.output;
+  const CliRun with_value = run_cli("simplify in.obj out.obj --ratoi=0.5");
+  EXPECT_NE(with_value.output.find("unknown option --ratoi (did you mean --ratio?)"), std::string::npos)
+      << with_value.output;
+  EXPECT_EQ(with_value.exit_code, 2);
+  // Values that look like options, and the options themselves, pass.
+  EXPECT_EQ(run_cli("run --help").exit_code, 0);
+  EXPECT_EQ(run_cli("--version").exit_code, 0);
+}
+
+TEST(Cli, RandomBytesStlSaysItIsNotAValidStlAndWhy) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_random_stl");
+  std::string bytes(400, '\0');
+  std::uint32_t state = 7;
+  for (char& c : bytes) {
+    state = state * 1664525u + 1013904223u;
+    c = static_cast<char>(state >> 24);
+  }
+  bytes[0] = 'x';
+  write_text(dir / "noise.stl", bytes);
+  const CliRun r = run_cli("info " + (dir / "noise.stl").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("error: " + (dir / "noise.stl").string() + ": not a valid STL: read as binary STL"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("LoadOptions"), std::string::npos) << r.output;
+}
+
+TEST(Cli, UnwritableOutputIsRefusedBeforeTheWork) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_output_fbx");
+  write_text(dir / "t.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  for (const char* command : {"simplify", "convert"}) {
+    const CliRun r = run_cli(std::string(command) + " " + (dir / "t.obj").string() + " " + (dir / "out.fbx").string());
+    EXPECT_EQ(r.exit_code, 2) << r.output;
+    EXPECT_EQ(r.output, "error: " + (dir / "out.fbx").string() +
+                            ": unsupported file extension '.fbx' (supported: .gltf .glb .obj .ply .off .stl)\n");
+  }
+  // Unreadable input after a refused output is never even opened.
+  const CliRun r = run_cli("simplify " + (dir / "missing.obj").string() + " " + (dir / "out.fbx").string());
+  EXPECT_EQ(r.output.find("missing.obj"), std::string::npos) << r.output;
+}
+
+TEST(Cli, EmbeddedBuffersStayEmbedded) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_embedded_buffers");
+  write_text(dir / "t.gltf", triangle_gltf("[1, 1, 0]"));
+  for (const char* command : {"convert", "simplify"}) {
+    const fs::path out = dir / (std::string(command) + ".gltf");
+    const CliRun r = run_cli(std::string(command) + " " + (dir / "t.gltf").string() + " " + out.string());
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_FALSE(fs::exists(fs::path(out).replace_extension(".bin"))) << command;
+    std::ifstream in(out);
+    const std::string text((std::istreambuf_iterator<char>(in)), {});
+    EXPECT_NE(text.find("\"uri\":\"data:application/octet-stream;base64,"), std::string::npos) << text;
+    const CliRun info = run_cli("info " + out.string());
+    EXPECT_EQ(info.exit_code, 0) << info.output;
+    EXPECT_NE(info.output.find("1 triangles"), std::string::npos) << info.output;
+  }
+  // A .gltf with an external buffer keeps writing one.
+  write_scaled_grid(dir / "grid.gltf", 1.0f);
+  ASSERT_EQ(run_cli("convert " + (dir / "grid.gltf").string() + " " + (dir / "grid_out.gltf").string()).exit_code, 0);
+  EXPECT_TRUE(fs::exists(dir / "grid_out.bin"));
+}
 
 TEST(Cli, InfoOnMissingFileNamesItAndExitsTwo) {
   const CliRun r = run_cli("info /nonexistent/dir/thing.obj");
@@ -193,7 +270,83 @@ TEST(Cli, SimplifyRejectsInvalidOptions) {
   const CliRun r = run_cli("simplify " + (dir / "environment/rock.ply").string() + " " + (dir / "x.ply").string() +
                         " --ratio 1.5");
   EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("error: --ratio must be in (0, 1], got 1.5"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("target_ratio"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(dir / "x.ply"));
+}
+
+}  // namespace
+
+namespace {
+
+// A glTF of one 2x2-quad grid (8 triangles) spanning [0, 1]^2 in world space, written with its positions divided
+// by `scale` under a node that scales by `scale` and moves by (5, 0, 0) (then back by the mesh's offset): what
+// gltfpack does when it moves dequantisation into node transforms.
+void write_scaled_grid(const fs::path& file, float scale) {
+  std::vector<float> positions;
+  for (int y = 0; y <= 2; ++y) {
+    for (int x = 0; x <= 2; ++x) {
+      for (float c : {x * 0.5f, y * 0.5f, 0.0f}) positions.push_back(c / scale);
+    }
+  }
+  std::vector<std::uint16_t> indices;
+  for (int y = 0; y < 2; ++y) {
+    for (int x = 0; x < 2; ++x) {
+      const std::uint16_t a = static_cast<std::uint16_t>(y * 3 + x), b = a + 1, c = a + 3, d = a + 4;
+      for (std::uint16_t i : {a, b, d, a, d, c}) indices.push_back(i);
+    }
+  }
+  std::string bin(reinterpret_cast<const char*>(positions.data()), positions.size() * 4);
+  bin.append(reinterpret_cast<const char*>(indices.data()), indices.size() * 2);
+  const fs::path bin_file = fs::path(file).replace_extension(".bin");
+  write_text(bin_file, bin);
+  const auto text = [](double x) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.9g", x);
+    return std::string(buf);
+  };
+  const std::string s = text(scale);
+  write_text(file, R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+  "nodes": [{"translation": [5, 0, 0], "children": [1]}, {"mesh": 0, "scale": [)" + s + "," + s + "," + s + R"(]}],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+  "accessors": [{"bufferView": 0, "componentType": 5126, "count": 9, "type": "VEC3", "min": [0, 0, 0],
+                 "max": [)" + text(1 / scale) + "," + text(1 / scale) + R"(, 0]},
+                {"bufferView": 1, "componentType": 5123, "count": 24, "type": "SCALAR"}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 108}, {"buffer": 0, "byteOffset": 108, "byteLength": 48}],
+  "buffers": [{"byteLength": 156, "uri": ")" + bin_file.filename().string() + R"("}]})");
+}
+
+TEST(Cli, EvalMeasuresInWorldSpaceThroughNodeTransforms) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_eval_world");
+  write_scaled_grid(dir / "plain.gltf", 1.0f);
+  write_scaled_grid(dir / "packed.gltf", 1.0f / 16383.0f);  // positions in the thousands, node scale 1/16383
+  const CliRun r = run_cli("eval " + (dir / "plain.gltf").string() + " " + (dir / "packed.gltf").string() + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto number = [&](const std::string& key) {
+    const auto at = r.output.find("\"" + key + "\": ");
+    return at == std::string::npos ? -1.0 : std::stod(r.output.substr(at + key.size() + 4));
+  };
+  EXPECT_NEAR(number("diagonal"), std::sqrt(2.0), 1e-4) << r.output;
+  EXPECT_LT(number("hausdorff_rel"), 1e-4) << "the same surface in the world: " << r.output;
+  const CliRun info = run_cli("info " + (dir / "packed.gltf").string());
+  EXPECT_EQ(info.exit_code, 0) << info.output;
+}
+
+TEST(Cli, RunBudgetsAndReportsTheWorldSizeOfAScaledMesh) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_run_world");
+  fs::create_directories(dir / "lib");
+  write_scaled_grid(dir / "lib/packed.gltf", 1.0f / 16383.0f);
+  write_text(dir / "config.json", R"({"version": 1, "classes": [{"name": "all", "match": ["**"],
+      "lods": [{"max_error": {"relative": 0.01}}]}]})");
+  const CliRun r = run_cli("run --config " + (dir / "config.json").string() + " --input " + (dir / "lib").string() +
+                           " --output " + (dir / "out").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json report = nlohmann::json::parse(std::ifstream(dir / "out/report.json"));
+  const nlohmann::json& asset = report["assets"][0];
+  EXPECT_NEAR(asset["input"]["diagonal"].get<double>(), std::sqrt(2.0), 1e-4);
+  const nlohmann::json& lod = asset["lods"][0];
+  EXPECT_LE(lod["hausdorff_rel"].get<double>(), 0.01) << lod.dump();
+  EXPECT_LE(lod["error_bound_rel"].get<double>(), 0.01) << lod.dump();
 }
 
 }  // namespace

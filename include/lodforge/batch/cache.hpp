@@ -53,11 +53,20 @@ std::string cache_key(std::string_view input_fingerprint, const nlohmann::json& 
 
 class Cache {
  public:
-  // `staging_tag` names this process's staging folder ("0-of-1" for an unsharded run).
-  Cache(std::filesystem::path output_dir, std::string staging_tag);
+  // `staging_tag` names this process's staging folder ("0-of-1" for an unsharded run). A read-only cache
+  // (`run --dry-run`) creates nothing; only lookup(), why_stale() and listed_outputs() may be used on it.
+  Cache(std::filesystem::path output_dir, std::string staging_tag, bool read_only = false);
 
   // The stored report record when the entry's key is `key` and every listed output exists.
   std::optional<nlohmann::json> lookup(std::string_view relative_path, std::string_view key) const;
+  // Why lookup() would miss, in words ("not built yet", "input or config changed", "an output is missing");
+  // empty when it would hit.
+  std::string why_stale(std::string_view relative_path, std::string_view key) const;
+  // The outputs the asset's entry lists, whatever its key (none without an entry): what an earlier run wrote.
+  std::vector<std::string> listed_outputs(std::string_view relative_path) const;
+  // The relative paths of every entry ('/'-separated, sorted), and the removal of one entry.
+  std::vector<std::string> entry_paths() const;
+  void remove_entry(std::string_view relative_path) const;
   // Writes the entry atomically. Call only after every output is in place. Throws io::IoError.
   void store(std::string_view relative_path, std::string_view key, const std::vector<std::string>& outputs,
              const nlohmann::json& record) const;

@@ -2,8 +2,9 @@
 //
 //   {"lodforge_version": str, "config_file": str, "effective_config": {...}, "jobs": int, "shard": "K/N" | null,
 //    "summary": {"assets", "succeeded", "failed", "skipped", "cache_hits", "lods", "input_triangles",
-//                "output_triangles": int, "seconds": float},
-//    "assets": [{"path", "class": str | null, "status": "ok" | "failed" | "skipped", "error": str | null,
+//                "output_triangles": int, "seconds": float, "lods_missed", "not_started": int},
+//    "assets": [{"path", "class": str | null, "status": "ok" | "failed" | "skipped" | "not_started",
+//                "error": str | null,
 //                "cache_hit": bool, "seconds": float, "input": {"triangles", "vertices": int, "diagonal": float,
 //                "repeated_faces": int},
 //                "outputs": [str], "lods": [{"level", "from", "target": {"kind", "value"}, "target_triangles",
@@ -22,6 +23,8 @@
 // attribute_metrics() lists them); "quad_fraction" and "irregular_vertices" the LOD's quad structure (quads /
 // faces, interior vertices of valence != 4: quad::quad_stats); "screen_coverage" the LOD's MSFT_screencoverage entry (README, "Screen coverage").
 //
+// "skipped": no class of the config matches the asset; "not_started": the run was stopped (Ctrl-C) before the
+// asset was reached (reports of earlier versions called those "skipped" and lack "not_started").
 // Assets are sorted by path. "seconds" (summary, asset, LOD) are the only fields that differ between two runs
 // of the same library, config and cache state, whatever --jobs; the report render (report_html.hpp) and
 // `lodforge merge-reports` read this document.

@@ -51,8 +51,9 @@ namespace lodforge::batch {
 // 7 polychord attribute quadrics (merged wedges' optimal values, tangents recomputed); 8 faces repeating an
 // earlier face dropped before simplifying; 9 polychord outputs re-pair triangles only into quads that split back
 // the same way, and the triangle engine starts over where the quad engine made under half the reduction;
-// 10 polychord: n-gon corners move; 11 polychord surface fit by least squares (vertices free in 3D).
-inline constexpr const char* kAlgorithmVersion = "lodforge-0.1.0/batch-11";
+// 10 polychord: n-gon corners move; 11 polychord surface fit by least squares (vertices free in 3D); 12 glTF
+// node transforms: budgets and measurements of the asset in world space.
+inline constexpr const char* kAlgorithmVersion = "lodforge-0.1.0/batch-12";
 inline constexpr const char* kLodforgeVersion = "0.1.0";
 
 // Estimated peak memory of one asset in flight. Measured with `lodforge run`: the whole chain (loaded Mesh,
@@ -88,10 +89,13 @@ struct RunOptions {
   unsigned jobs = 0;  // threads for the whole run (graph and the simplifier inside it); 0 = all cores
   std::optional<Shard> shard{};
   bool force = false;                    // ignore the cache (still writes it)
+  // Remove the output files (and the cache entries) that the library and config no longer produce; without it
+  // they are only listed (RunResult::stale_outputs). Not in a sharded run, which sees only its own assets.
+  bool prune = false;
   std::uint64_t memory_limit_bytes = 0;  // 0 = default_memory_limit()
   bool write_report = true;              // report.json + report.html in output_dir (report.shard-K-of-N.* when sharded)
   std::function<void(const AssetDone&)> on_asset_done{};  // progress observer; must not throw
-  // Stops admitting new assets once set (Ctrl-C); assets in flight finish, the rest are reported "skipped".
+  // Stops admitting new assets once set (Ctrl-C); assets in flight finish, the rest are reported "not_started".
   const std::atomic<bool>* cancel = nullptr;
   // Testing aid: admit at most this many assets (0 = all), as if the run were stopped there.
   std::size_t stop_after = 0;
@@ -113,26 +117,56 @@ struct StageSeconds {
 struct RunResult {
   nlohmann::json report;  // the report.json document
   std::size_t succeeded = 0, failed = 0, skipped = 0, cache_hits = 0;
+  std::size_t not_started = 0;  // assets a stopped run did not reach (status "not_started")
   std::vector<std::string> failures;  // "path: error", sorted by path
+  std::vector<std::string> skipped_assets;  // "path: reason" of the skipped ones (no class matches), sorted
   StageSeconds stages;
   std::uint64_t input_triangles = 0;  // of the assets processed (not cache hits)
   double seconds = 0;
   bool cancelled = false;
   std::filesystem::path report_path;  // where report.json went (empty if not written)
   std::vector<std::string> warnings;  // library entries the scan skipped (LibraryScan::skipped)
+  std::vector<std::string> unsupported;  // LibraryScan::unsupported, less the output folder's own files
+  // Output files (meshes, buffers, materials, textures; relative to the output folder, sorted) that no asset of
+  // this run produced: left by assets since removed, renamed or unmatched, or by LODs the config dropped. Outputs
+  // of assets that failed or were not started this time are kept. Empty in a sharded run.
+  std::vector<std::string> stale_outputs;
+  bool pruned = false;  // RunOptions::prune: stale_outputs were removed
 };
+
+// What `run --dry-run` prints: per asset its class, LOD targets and whether a run would rebuild it.
+struct PlannedAsset {
+  std::string path;
+  std::string class_name;         // empty: no class matches (the asset would be skipped)
+  std::vector<std::string> lods;  // "ratio 0.5", "triangles 60", "max_error 0.03", "screen_size 2"
+  bool rebuild = false;
+  std::string reason;  // why it is rebuilt ("not built yet", "input or config changed", ...) or skipped
+};
+struct Plan {
+  std::vector<PlannedAsset> assets;   // sorted by path
+  std::vector<std::string> warnings;  // LibraryScan::skipped
+  std::vector<std::string> unsupported;
+};
+
+// The run `options` would make, with nothing written (no output folder, cache or report is created): reads
+// every asset file to fingerprint it, as a run does. Throws io::IoError like run_batch.
+Plan plan_batch(const BatchConfig& config, const RunOptions& options);
 
 struct LibraryScan {
   std::vector<std::string> assets;  // the supported files, as sorted '/'-separated relative paths
   // Entries that cannot be read, each "<path>: skipped: <why>" (a symbolic link loop, a broken link with an
   // asset's extension, a folder that cannot be opened); the rest of the library is scanned as usual.
   std::vector<std::string> skipped;
+  // Files of no format lodforge reads (.fbx, .txt), as sorted relative paths; companions of assets (.bin
+  // buffers, textures, .mtl) and hidden files are not listed.
+  std::vector<std::string> unsupported;
 };
 
 // The supported files under `input_dir`. Throws io::IoError when the folder itself cannot be read.
 LibraryScan scan_library(const std::filesystem::path& input_dir);
 
-// Throws io::IoError when the input folder cannot be read or the output folder cannot be created; everything
+// Throws io::IoError when the input folder cannot be read or holds no asset file at all (nothing is written then),
+// or the output folder cannot be created; everything
 // that goes wrong with one asset is recorded in its report record instead.
 RunResult run_batch(const BatchConfig& config, const RunOptions& options);
 

@@ -3,6 +3,7 @@
 // only and everything else round-trips unchanged.
 #pragma once
 
+#include <array>
 #include <filesystem>
 #include <memory>
 #include <stdexcept>
@@ -10,6 +11,7 @@
 #include <vector>
 
 #include "lodforge/core/mesh.hpp"
+#include "lodforge/core/vec.hpp"
 
 namespace lodforge::io {
 
@@ -39,6 +41,10 @@ struct Asset {
   std::vector<Mesh> meshes;           // glTF: one per glTF mesh (primitives are material slots)
   std::vector<std::string> warnings;  // things carried or converted that the user should know about
   std::shared_ptr<const GltfDocument> gltf;  // set for glTF/GLB sources
+  // glTF: per mesh, the world transforms (4x4, column-major as in glTF) of the nodes of the default scene (else
+  // of every root node) that show it, one per instance. Empty for a mesh no node shows, and for the other
+  // formats: identity. A skinned node's own transform is not applied (glTF: the joints place the mesh).
+  std::vector<std::vector<std::array<double, 16>>> mesh_transforms;
 
   // For OBJ: the mtllib lines of the source, written back unchanged.
   std::vector<std::string> obj_mtllibs;
@@ -50,6 +56,15 @@ struct LoadOptions {
   // Hard caps against hostile headers; a file claiming more is rejected before anything is allocated.
   std::uint64_t max_elements = 1ull << 31;
 };
+
+// The asset's meshes as the scene shows them: every instance of every mesh, positions in world space (see
+// Asset::mesh_transforms), as one mesh of position-only faces (for measuring, not for writing).
+Mesh world_surface(const Asset& asset);
+// Bounds of world_surface(asset), without building it.
+Bounds3 world_bounds(const Asset& asset);
+// How much larger mesh `m` shows in world space than in its own coordinates: the largest scale of its
+// instances' transforms (1 without transforms). A distance in the world divided by it is one in the mesh.
+double world_scale(const Asset& asset, std::size_t m);
 
 // Loads any supported file. Throws IoError (naming the file and the problem) on any bad input.
 Asset load_asset(const std::filesystem::path& path, const LoadOptions& options = {});

@@ -57,17 +57,20 @@ Json report(std::vector<Json> assets, const Json& shard = nullptr) {
 }
 
 TEST(Report, SummaryCountsStatusesLodsAndTriangles) {
-  const Json r = report({asset("a"), asset("b", "failed"), asset("c")});
-  EXPECT_EQ(r["summary"], (Json{{"assets", 3},
+  const Json r = report({asset("a"), asset("b", "failed"), asset("c"), asset("d", "not_started"),
+                         asset("e", "skipped")});
+  EXPECT_TRUE(check_report(r).empty()) << check_report(r).front();
+  EXPECT_EQ(r["summary"], (Json{{"assets", 5},
                                 {"succeeded", 2},
                                 {"failed", 1},
-                                {"skipped", 0},
+                                {"skipped", 1},
                                 {"cache_hits", 0},
                                 {"lods", 2},
                                 {"input_triangles", 200},
                                 {"output_triangles", 100},
                                 {"seconds", 1.5},
-                                {"lods_missed", 0}}));
+                                {"lods_missed", 0},
+                                {"not_started", 1}}));
   EXPECT_TRUE(check_report(r).empty());
 }
 
@@ -81,7 +84,7 @@ TEST(Report, CheckNamesEveryShapeProblem) {
   const std::vector<std::string> problems = check_report(r);
   const std::vector<std::string> expected = {"jobs: missing",
                                              "summary.lods: missing",
-                                             "assets[0].status: expected ok, failed or skipped",
+                                             "assets[0].status: expected ok, failed, skipped or not_started",
                                              "assets[0].lods[0].attributes.normal_deviation_p95_deg: expected a number",
                                              "assets[1].path: assets are not sorted by path (or a path repeats)",
                                              "assets[1].lods[0].ratio: expected a number"};

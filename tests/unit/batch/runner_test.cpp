@@ -203,6 +203,9 @@ TEST(BatchRunner, CorruptAssetsFailAloneAndAreReported) {
   EXPECT_EQ(r.failures[0].rfind("chars/truncated.glb: ", 0), 0u) << r.failures[0];
   EXPECT_EQ(r.failures[1].rfind("env/empty.ply: ", 0), 0u) << r.failures[1];
   EXPECT_EQ(r.failures[2].rfind("props/broken.obj: ", 0), 0u) << r.failures[2];
+  for (const std::string& f : r.failures) {
+    EXPECT_EQ(f.find(lib.root.string()), std::string::npos) << "the path is given twice: " << f;
+  }
   const Json& broken = record_of(r.report, "props/broken.obj");
   EXPECT_EQ(broken["status"], "failed");
   EXPECT_TRUE(broken["error"].is_string());
@@ -226,7 +229,9 @@ TEST(BatchRunner, StoppedRunResumesToIdenticalOutput) {
       run_batch(config(), {.input_dir = lib.root, .output_dir = dir / "out", .jobs = 2, .stop_after = 60});
   EXPECT_TRUE(stopped.cancelled);
   EXPECT_EQ(stopped.succeeded, 60u);
-  EXPECT_EQ(stopped.skipped, lib.files.size() - 60);
+  EXPECT_EQ(stopped.not_started, lib.files.size() - 60);
+  EXPECT_EQ(stopped.skipped, 0u);
+  EXPECT_EQ(stopped.report["summary"]["not_started"], lib.files.size() - 60);
   EXPECT_TRUE(check_report(stopped.report).empty());
   EXPECT_TRUE(testlib::leftovers(dir / "out").empty());
   // What a kill in the middle of writing leaves: a staged half-asset and an entry's temporary file.
@@ -260,7 +265,7 @@ TEST(BatchRunner, CancelFlagStopsAdmittingAssets) {
   EXPECT_TRUE(r.cancelled);
   EXPECT_GE(r.succeeded, 5u);
   EXPECT_LT(r.succeeded, 10u) << "only the assets already in flight finish";
-  EXPECT_EQ(r.succeeded + r.skipped, lib.files.size());
+  EXPECT_EQ(r.succeeded + r.not_started, lib.files.size());
 }
 
 TEST(BatchRunner, ThreeShardsMergeToTheUnshardedReport) {
@@ -650,6 +655,133 @@ TEST(BatchRunner, TightMemoryLimitStillFinishes) {
   const RunResult r =
       run_batch(config(), {.input_dir = lib.root, .output_dir = dir / "out", .jobs = 2, .memory_limit_bytes = 1});
   EXPECT_EQ(r.succeeded, lib.files.size());
+}
+
+}  // namespace
+}  // namespace lodforge::batch
+
+namespace lodforge::batch {
+namespace {
+
+// Where the LOD `level` of the asset `rel` goes in the output folder.
+std::string lod_output(const std::string& rel, std::size_t level) {
+  return (fs::path(rel).parent_path() / lod_file_name(rel, level)).generic_string();
+}
+
+// A config whose props class makes `levels` LODs (the others as in the fixture).
+BatchConfig props_levels(int levels) {
+  Json j = Json::parse(testlib::config_text());
+  Json lods = Json::array();
+  for (int k = 0; k < levels; ++k) lods.push_back({{"ratio", 0.5 / (k + 1)}});
+  j["classes"][0]["lods"] = lods;
+  return parse_config(j, "test config");
+}
+
+TEST(BatchPlan, NamesClassTargetsAndRebuildsAndWritesNothing) {
+  const fs::path dir = testing::temp_dir("batch_plan");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 10);
+  fs::create_directories(lib.root / "misc");
+  std::ofstream(lib.root / "misc/extra.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  const RunOptions options{.input_dir = lib.root, .output_dir = dir / "out", .jobs = 2};
+  const Plan before = plan_batch(config(), options);
+  EXPECT_FALSE(fs::exists(dir / "out")) << "a plan writes nothing";
+  ASSERT_EQ(before.assets.size(), lib.files.size() + 1);
+  for (const PlannedAsset& a : before.assets) {
+    if (a.path == "misc/extra.obj") {
+      EXPECT_TRUE(a.class_name.empty());
+      EXPECT_FALSE(a.rebuild);
+      EXPECT_NE(a.reason.find("matches no class"), std::string::npos) << a.reason;
+      continue;
+    }
+    EXPECT_TRUE(a.rebuild) << a.path;
+    EXPECT_EQ(a.reason, "not built yet") << a.path;
+    if (a.path.rfind("props/", 0) == 0) {
+      EXPECT_EQ(a.class_name, "props");
+      EXPECT_EQ(a.lods, (std::vector<std::string>{"ratio 0.5", "ratio 0.25", "ratio 0.1"}));
+    }
+    if (a.path.rfind("chars/", 0) == 0) {
+      EXPECT_EQ(a.lods.back(), "max_error 0.03") << a.path;
+    }
+  }
+  run(lib.root, dir / "out", 2);
+  const Plan after = plan_batch(config(), options);
+  for (const PlannedAsset& a : after.assets) EXPECT_FALSE(a.rebuild) << a.path << ": " << a.reason;
+  // An edited input and a changed class are rebuilt; a deleted output too.
+  const std::string edited = lib.files.front();
+  std::ofstream(lib.root / edited, std::ios::app) << "\n";
+  const std::string unwritten = *std::find_if(lib.files.begin(), lib.files.end(),
+                                              [](const std::string& p) { return p.rfind("env/", 0) == 0; });
+  ASSERT_TRUE(fs::remove(dir / "out" / lod_output(unwritten, 1)));
+  const Plan changed = plan_batch(props_levels(2), options);
+  for (const PlannedAsset& a : changed.assets) {
+    if (a.path == edited || a.path.rfind("props/", 0) == 0) {
+      EXPECT_EQ(a.reason, "input or config changed") << a.path;
+    } else if (a.path == unwritten) {
+      EXPECT_EQ(a.reason, "an output is missing") << a.path;
+    } else if (!a.class_name.empty()) {
+      EXPECT_FALSE(a.rebuild) << a.path << ": " << a.reason;
+    }
+  }
+}
+
+TEST(BatchPrune, StaleOutputsAreListedAndRemovedOnlyWithPrune) {
+  const fs::path dir = testing::temp_dir("batch_prune");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 10);
+  const fs::path out = dir / "out";
+  ASSERT_TRUE(run(lib.root, out, 2).stale_outputs.empty());
+  std::ofstream(out / "notes.txt") << "not an output: never judged";
+
+  // A removed asset, a LOD the config dropped, and a failing asset whose last good outputs stay.
+  const std::string removed = "props/prop_0.obj", failing = "env/patch_4.off";
+  ASSERT_TRUE(fs::exists(lib.root / removed) && fs::exists(lib.root / failing));
+  const std::vector<std::string> failing_outputs = [&] {
+    std::vector<std::string> v;
+    for (const auto& e : fs::recursive_directory_iterator(out / "env")) {
+      const std::string rel = e.path().lexically_relative(out).generic_string();
+      if (rel.rfind("env/patch_4", 0) == 0) v.push_back(rel);
+    }
+    return v;
+  }();
+  ASSERT_FALSE(failing_outputs.empty());
+  fs::remove(lib.root / removed);
+  std::ofstream(lib.root / failing) << "OFF\n3 1 0\n0 0 0\n";  // truncated
+  const RunResult listed = run(lib.root, out, 2, props_levels(2));
+  std::vector<std::string> expected;
+  for (int k = 1; k <= 3; ++k) expected.push_back(lod_output(removed, k));
+  for (const std::string& p : lib.files) {
+    if (p.rfind("props/", 0) == 0 && p != removed) expected.push_back(lod_output(p, 3));
+  }
+  // glTF-family props keep one file (MSFT_lod); only the per-file formats lose their third LOD file.
+  std::erase_if(expected, [&](const std::string& f) { return !fs::exists(out / f); });
+  std::sort(expected.begin(), expected.end());
+  ASSERT_FALSE(expected.empty());
+  EXPECT_EQ(listed.stale_outputs, expected);
+  EXPECT_EQ(listed.report["stale_outputs"], Json(expected));
+  EXPECT_FALSE(listed.pruned);
+  for (const std::string& f : expected) EXPECT_TRUE(fs::exists(out / f)) << f << " removed without --prune";
+
+  RunOptions prune{.input_dir = lib.root, .output_dir = out, .jobs = 2};
+  prune.prune = true;
+  const RunResult pruned = run_batch(props_levels(2), prune);
+  EXPECT_EQ(pruned.stale_outputs, expected);
+  EXPECT_TRUE(pruned.pruned);
+  for (const std::string& f : expected) EXPECT_FALSE(fs::exists(out / f)) << f;
+  for (const std::string& f : failing_outputs) EXPECT_TRUE(fs::exists(out / f)) << f << ": a failure keeps its outputs";
+  EXPECT_TRUE(fs::exists(out / "notes.txt"));
+  const Cache cache(out, "0-of-1");
+  const std::vector<std::string> entries = cache.entry_paths();
+  EXPECT_EQ(std::count(entries.begin(), entries.end(), removed), 0) << "the removed asset's cache entry goes too";
+  EXPECT_TRUE(run_batch(props_levels(2), prune).stale_outputs.empty());
+}
+
+TEST(BatchPrune, ALibraryInsideTheOutputFolderIsNeverStale) {
+  const fs::path dir = testing::temp_dir("batch_prune_library_inside");
+  const testlib::Library lib = testlib::write_library(dir / "out/lib", 6);
+  RunOptions prune{.input_dir = lib.root, .output_dir = dir / "out", .jobs = 2};
+  prune.prune = true;
+  const RunResult r = run_batch(config(), prune);
+  EXPECT_TRUE(r.stale_outputs.empty()) << r.stale_outputs.front();
+  for (const std::string& f : lib.files) EXPECT_TRUE(fs::exists(lib.root / f)) << f;
 }
 
 }  // namespace

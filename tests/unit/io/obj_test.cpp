@@ -239,7 +239,9 @@ TEST(ObjHostile, TooFewCoordinates) { EXPECT_ERROR("v 1 2\n", "'v' statement has
 TEST(ObjHostile, FaceWithTwoVertices) { EXPECT_ERROR(std::string(kSquare) + "f 1 2\n", "face has 2 vertices (at least 3 needed)"); }
 TEST(ObjHostile, MoreVerticesThanMaxElements) {
   const std::string msg = error(std::string(kSquare) + "f 1 2 3\n", LoadOptions{.max_elements = 3});
-  EXPECT_NE(msg.find("max_elements"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("more than 3 "), std::string::npos) << msg;
+  EXPECT_NE(msg.find(", the most one file may hold"), std::string::npos) << msg;
+  EXPECT_EQ(msg.find("max_elements"), std::string::npos) << "no internal names: " << msg;
 }
 
 // --- corpus -----------------------------------------------------------------------------------------------

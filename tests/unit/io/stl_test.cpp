@@ -175,6 +175,23 @@ TEST(StlHostile, CountLargerThanTheFileHolds) {
   const std::string msg = error(binary_stl(kSquare, "x", 0xfffffff0u), LoadOptions{.max_elements = ~0ull});
   EXPECT_NE(msg.find("header declares 4294967280 triangles but only 100 bytes remain"), std::string::npos) << msg;
 }
+TEST(StlHostile, RandomBytesSayTheFileIsNoStlAndWhy) {
+  std::string bytes(300, '\0');
+  std::uint32_t state = 12345;
+  for (char& c : bytes) {
+    state = state * 1664525u + 1013904223u;
+    c = static_cast<char>(state >> 24);
+  }
+  bytes[0] = 'x';  // not "solid"
+  const std::string msg = error(bytes);
+  EXPECT_EQ(msg.rfind("hostile.bin: not a valid STL: read as binary STL (it does not start with 'solid'): header "
+                      "declares ",
+                      0),
+            0u)
+      << msg;
+  EXPECT_EQ(msg.find("LoadOptions"), std::string::npos) << msg;
+  EXPECT_ERROR(std::string("solid x\nfacet normal 0 0 1\n junk"), "not a valid STL: read as ASCII STL");
+}
 TEST(StlHostile, CountAboveMaxElements) {
   const std::string msg = error(binary_stl(kSquare), LoadOptions{.max_elements = 1});
   EXPECT_NE(msg.find("header declares 2 triangles, more than the limit of 1"), std::string::npos) << msg;
