@@ -12,8 +12,11 @@
 // triangles overlap (a fanned non-convex polygon, faces written many times over) stops at the first; and a
 // hinted query walks from the hint across the mesh's edges first, so it starts from the answer even where many
 // boxes overlap.
-// What stays slow is a query off the surface next to thousands of long slivers in a box-unfriendly layout
-// (a fine cone fanned from its apex): their boxes are close, so they are tested.
+// Children whose triangles are slivers at an angle to the axes also get an oriented box (BvhOrientedBox), so that
+// a query off the surface next to a fine cone fanned from its apex opens about what it would on a clean grid.
+// What stays slow: thousands of coplanar slivers nested inside each other (one fanned polygon turned out of the
+// axis planes), whose distances from a point off the surface differ only by float rounding, and long parallel
+// needles at an angle whose centroids the axis-aligned split interleaves (docs/performance.md).
 #pragma once
 
 #include <array>
@@ -68,6 +71,17 @@ struct alignas(64) BvhNode {
   std::uint32_t child[2], count[2];
 };
 
+// An oriented box around one child of a node, kept beside the node where it is much tighter than the child's
+// axis-aligned box: slivers and thin slabs at an angle to the axes, whose axis-aligned boxes overlap far and
+// wide. The child's corners q satisfy lo[k] <= axis[k] . (q - origin) <= hi[k]; `shrink` (<= 1) scales the
+// squared distance so that it stays a lower bound although the float axes are only nearly orthonormal.
+struct BvhOrientedBox {
+  float axis[3][3];
+  float origin[3];
+  float lo[3], hi[3];
+  float shrink;
+};
+
 class TriangleBvh {
  public:
   // An empty hierarchy: every query returns no hit.
@@ -119,6 +133,12 @@ class TriangleBvh {
   };
   const Root& root() const { return root_; }
   std::span<const BvhNode> nodes() const { return nodes_; }
+  // The oriented box of child i of node `node`, or nullptr where only the axis-aligned box is kept.
+  const BvhOrientedBox* oriented_box(std::uint32_t node, int i) const {
+    const std::uint32_t k = node_obb_.empty() ? kInvalidIndex : node_obb_[node][i];
+    return k == kInvalidIndex ? nullptr : &obbs_[k];
+  }
+  std::size_t oriented_box_count() const { return obbs_.size(); }
   std::uint32_t slot_triangle(std::uint32_t slot) const { return slot_triangle_[slot]; }
 
  private:
@@ -129,10 +149,16 @@ class TriangleBvh {
   BvhHit search(const Vec3d& p, BvhHit best, const BvhHit& known, BvhWork& work) const;
   BvhHit hinted(const Vec3d& p, std::uint32_t hint, BvhWork& work) const;
   BvhHit measure(const Vec3d& p, std::uint32_t triangle, BvhWork& work) const;  // one triangle in the tree
+  // Squared distance from p to child i of node `node`: its axis-aligned box, raised to its oriented box where
+  // one is kept and the axis-aligned one is nearer than `limit`.
+  double child_dist_sq(std::uint32_t node, int i, const Vec3d& p, double limit) const;
+  void fit_oriented_boxes();
 
   Root root_;
   double scale_ = 0;  // largest absolute coordinate of a triangle in the tree
   std::vector<BvhNode> nodes_;
+  std::vector<std::array<std::uint32_t, 2>> node_obb_;  // per node and child: index into obbs_ or kInvalidIndex
+  std::vector<BvhOrientedBox> obbs_;
   std::vector<std::array<Vec3d, 3>> slot_corners_;  // triangles in leaf order, for locality
   std::vector<std::uint32_t> slot_triangle_;        // slot -> triangle number
   std::vector<std::uint32_t> slot_of_;              // triangle number -> slot, kInvalidIndex if left out

@@ -318,6 +318,80 @@ TEST(TriangleBvh, EveryBoxContainsItsSubtreeAndEveryTriangleIsInOneLeaf) {
   for (int t = 0; t < 800; ++t) EXPECT_EQ(seen[t], 1) << "triangle " << t;
 }
 
+// Soup of a mesh's triangles, fan-triangulated as the BVH numbers them.
+Soup soup_of(const Mesh& mesh) {
+  Soup s;
+  for (const Vec3f& p : mesh.positions) s.positions.push_back(to_double(p));
+  s.indices = triangle_vertex_indices(mesh);
+  return s;
+}
+
+// Oriented boxes: kept beside the axis-aligned ones for slivers at an angle to the axes, seldom for an
+// axis-aligned grid (only small groups of cells that run diagonally), and each holds every corner of its subtree.
+TEST(TriangleBvh, OrientedBoxesHoldTheirSubtreesAndAreKeptOnlyWhereTight) {
+  const TriangleBvh grid = make_triangle_bvh(testing::make_grid(40, 40, false));
+  EXPECT_LT(grid.oriented_box_count(), grid.node_count() / 5);
+  for (const Mesh& mesh : {testing::make_needle_strip(3000), testing::make_cone(3000),
+                           testing::tilted(testing::make_fanned_disk(3000))}) {
+    const TriangleBvh bvh = make_triangle_bvh(mesh);
+    EXPECT_GT(bvh.oriented_box_count(), bvh.node_count()) << "most children of a sliver mesh get one";
+    std::function<void(std::uint32_t, std::uint32_t, std::vector<std::uint32_t>&)> collect =
+        [&](std::uint32_t index, std::uint32_t count, std::vector<std::uint32_t>& out) {
+          if (count > 0) {
+            for (std::uint32_t s = index; s < index + count; ++s) out.push_back(bvh.slot_triangle(s));
+            return;
+          }
+          for (int i = 0; i < 2; ++i) collect(bvh.nodes()[index].child[i], bvh.nodes()[index].count[i], out);
+        };
+    for (std::uint32_t node = 0; node < bvh.node_count(); ++node) {
+      for (int i = 0; i < 2; ++i) {
+        const BvhOrientedBox* box = bvh.oriented_box(node, i);
+        if (!box) continue;
+        EXPECT_GT(box->shrink, 0.999f);
+        EXPECT_LE(box->shrink, 1.0f);
+        std::vector<std::uint32_t> below;
+        collect(bvh.nodes()[node].child[i], bvh.nodes()[node].count[i], below);
+        for (const std::uint32_t t : below) {
+          for (const Vec3d& q : bvh.triangle(t)) {
+            for (int k = 0; k < 3; ++k) {
+              double along = 0;
+              for (int j = 0; j < 3; ++j) along += double{box->axis[k][j]} * (q[j] - double{box->origin[j]});
+              EXPECT_GE(along, box->lo[k]) << "node " << node << " child " << i << " triangle " << t;
+              EXPECT_LE(along, box->hi[k]) << "node " << node << " child " << i << " triangle " << t;
+            }
+          }
+        }
+      }
+    }
+  }
+}
+
+// Where oriented boxes prune (slivers at an angle, off the surface and on it) the answer is still the
+// brute-force distance, up to the documented tie tolerance.
+TEST(TriangleBvh, ClosestPointNextToSliversEqualsBruteForce) {
+  for (const Mesh& mesh : {testing::make_needle_strip(2000), testing::make_cone(2000),
+                           testing::tilted(testing::make_fanned_disk(2000))}) {
+    const Soup soup = soup_of(mesh);
+    const TriangleBvh bvh(soup.positions, soup.indices);
+    ASSERT_GT(bvh.oriented_box_count(), 0u);
+    const double tie = 0x1p-26 * 2.0;  // of the largest coordinate, here below 2
+    std::uint64_t key = 7u << 20;
+    for (int q = 0; q < 400; ++q) {
+      const double r = q % 4 == 0 ? 2.0 : 0.05;  // far from it, or next to a point of it
+      const std::uint32_t t = static_cast<std::uint32_t>(q * 7919 % (soup.indices.size() / 3));
+      const std::array<Vec3d, 3> c = bvh.triangle(t);
+      const Vec3d on = (c[0] + c[1] + c[2]) * (1.0 / 3.0);
+      const Vec3d p = on + v3(uniform(key, -r, r), uniform(key + 1, -r, r), uniform(key + 2, -r, r));
+      key += 3;
+      const BvhHit want = brute_force(soup, p);
+      const BvhHit got = bvh.closest_point(p, t);
+      ASSERT_TRUE(got.found());
+      EXPECT_NEAR(got.distance(), want.distance(), tie) << "query " << q;
+      EXPECT_NEAR(bvh.closest_point(p).distance(), want.distance(), tie) << "query " << q;
+    }
+  }
+}
+
 TEST(TriangleBvh, EmptyTreeAndNonFiniteTrianglesGiveNoHit) {
   const TriangleBvh empty;
   EXPECT_TRUE(empty.empty());
