@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Installs what is missing (Debian packages, the glTF validator from npm) and builds lodforge.
+# Installs what is missing (Debian packages, the glTF validator and the MSFT_lod client check's packages from
+# npm, Chromium) and builds lodforge.
 # Idempotent: a second run installs nothing and rebuilds only what changed.
 #   BUILD_DIR   build folder (default: build)
 #   BUILD_TYPE  CMake build type (default: Release)
@@ -45,6 +46,34 @@ if command -v npm >/dev/null 2>&1; then
 else
   echo "setup: npm not found; glTF validator tests will be skipped"
 fi
+
+# ---- MSFT_lod client check: Babylon.js in headless Chromium (tests/client/msft_lod_client.mjs) ----
+# Optional: the test skips with a message without node, these npm packages or Chromium. puppeteer-core is
+# installed here only when no version of it is there yet.
+BABYLON_VERSION=9.28.0
+CLIENT_PUPPETEER_VERSION=25.16.0
+if command -v npm >/dev/null 2>&1; then
+  client_missing=()
+  for pkg in babylonjs babylonjs-loaders; do
+    if [ ! -f "tools/node/node_modules/$pkg/package.json" ] ||
+       ! grep -q "\"version\": \"$BABYLON_VERSION\"" "tools/node/node_modules/$pkg/package.json"; then
+      client_missing+=("$pkg@$BABYLON_VERSION")
+    fi
+  done
+  [ -f tools/node/node_modules/puppeteer-core/package.json ] ||
+    client_missing+=("puppeteer-core@$CLIENT_PUPPETEER_VERSION")
+  if [ ${#client_missing[@]} -gt 0 ]; then
+    echo "setup: installing ${client_missing[*]} into tools/node"
+    mkdir -p tools/node
+    npm install --silent --no-audit --no-fund --prefix tools/node "${client_missing[@]}" >/dev/null 2>&1 ||
+      echo "setup: warning: npm install of ${client_missing[*]} failed; the MSFT_lod client test will be skipped"
+  fi
+fi
+if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/null 2>&1; then
+  install_packages chromium ||
+    echo "setup: warning: could not install chromium; the MSFT_lod client test will be skipped"
+fi
+# ---- end of the MSFT_lod client check ----
 
 JOBS=${JOBS:-$(nproc)}
 read -r -a targets <<< "${TARGETS:-}"

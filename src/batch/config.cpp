@@ -517,6 +517,17 @@ const std::vector<Field<OutputOptions>>& output_fields() {
   return fields;
 }
 
+// `defaults.lod_switch`: the projection of LOD switch points (LodSwitch).
+const std::vector<Field<LodSwitch>>& lod_switch_fields() {
+  using B = FieldsOf<LodSwitch>;
+  static const std::vector<Field<LodSwitch>> fields = {
+      B::number("screen_height_px", &LodSwitch::screen_height_px, above(0)),
+      B::number("error_px", &LodSwitch::error_px, above(0)),
+      B::number("fov_y_deg", &LodSwitch::fov_y_deg, above(0).below(180)),
+  };
+  return fields;
+}
+
 // Run limits: `defaults` only, and no part of the cache key (they bound how a run goes, not what it makes).
 const std::vector<Field<RunLimits>>& limit_fields() {
   using B = FieldsOf<RunLimits>;
@@ -542,6 +553,7 @@ std::vector<std::string_view> defaults_keys() {
   std::vector<std::string_view> keys = option_keys();
   append_keys(keys, output_fields());
   append_keys(keys, limit_fields());
+  keys.push_back("lod_switch");
   return keys;
 }
 
@@ -866,6 +878,12 @@ BatchConfig read_document(const Json& doc, Problems& problems) {
       apply_fields(*defaults, "defaults", option_fields(), config.defaults, problems);
       apply_fields(*defaults, "defaults", output_fields(), config.output, problems);
       apply_fields(*defaults, "defaults", limit_fields(), config.limits, problems);
+      if (const Json* sw = find(*defaults, "lod_switch"); sw && expect_object(*sw, "defaults.lod_switch", problems)) {
+        std::vector<std::string_view> keys;
+        append_keys(keys, lod_switch_fields());
+        check_keys(*sw, "defaults.lod_switch", keys, problems);
+        apply_fields(*sw, "defaults.lod_switch", lod_switch_fields(), config.lod_switch, problems);
+      }
     }
   }
   if (const Json* classes = find(doc, "classes")) {
@@ -1045,8 +1063,17 @@ const char* target_kind_name(TargetKind kind) {
 }
 
 double ScreenSize::switch_distance(double radius) const {
+  return distance_for_coverage(radius, screen_coverage(), fov_y_deg);
+}
+
+double coverage_for_error(double error_rel, double error_px, double screen_height_px) {
+  return error_px / (screen_height_px * std::max(error_rel, 1e-12));  // an exact LOD would switch at once
+}
+
+double distance_for_coverage(double radius, double coverage, double fov_y_deg) {
   const double half_fov = fov_y_deg * std::numbers::pi / 360.0;
-  return radius * screen_height_px / (pixels * std::tan(half_fov));
+  if (!(coverage > 0)) return std::numeric_limits<double>::infinity();
+  return radius / (coverage * std::tan(half_fov));
 }
 
 bool AssetClass::matches(std::string_view relative_path) const {
@@ -1087,6 +1114,7 @@ nlohmann::json effective_config_json(const BatchConfig& config) {
   Json defaults = write_fields(option_fields(), config.defaults);
   defaults.update(write_fields(output_fields(), config.output));
   defaults.update(write_fields(limit_fields(), config.limits));
+  defaults["lod_switch"] = write_fields(lod_switch_fields(), config.lod_switch);
   Json out = {{"version", config.version}, {"defaults", std::move(defaults)}};
   if (!config.description.empty()) out["description"] = config.description;
   if (!config.default_class.empty()) out["default_class"] = config.default_class;
@@ -1097,7 +1125,11 @@ nlohmann::json effective_config_json(const BatchConfig& config) {
 }
 
 nlohmann::json effective_class_json(const BatchConfig& config, const AssetClass& cls) {
-  return {{"class", class_json(cls)}, {"output", write_fields(output_fields(), config.output)}};
+  Json out = {{"class", class_json(cls)}, {"output", write_fields(output_fields(), config.output)}};
+  // The switch projection shapes the glTF coverage hints; only a changed one joins the key, so caches made
+  // before it existed stay valid.
+  if (config.lod_switch != LodSwitch{}) out["lod_switch"] = write_fields(lod_switch_fields(), config.lod_switch);
+  return out;
 }
 
 const AssetClass* find_class(const BatchConfig& config, std::string_view name) {

@@ -42,6 +42,7 @@
 #include <set>
 
 #include "lodforge/batch/cache.hpp"
+#include "lodforge/batch/lods_manifest.hpp"
 #include "lodforge/batch/post_process.hpp"
 #include "lodforge/batch/report.hpp"
 #include "lodforge/core/validate.hpp"
@@ -70,9 +71,6 @@ constexpr std::size_t kEvalSamplesPerTriangle = 1, kEvalSamplesMin = 500, kEvalS
 // Attribute metrics (attribute_metrics()): area samples per source triangle, clamped, and per synthetic pose.
 constexpr std::size_t kAttributeSamplesPerTriangle = 2, kAttributeSamplesMin = 2000, kAttributeSamplesMax = 50000;
 constexpr std::size_t kAttributePoseSamples = 5000;
-// Screen-coverage hints for LODs whose target is not a screen size: the coverage at which the LOD's measured
-// Hausdorff error is one pixel on a 1080-pixel-tall screen (the projection stated in config.hpp, ScreenSize).
-constexpr double kCoverageScreenPx = 1080.0, kCoverageErrorPx = 1.0;
 
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
@@ -681,10 +679,12 @@ class Pipeline {
       const quad::QuadStats quads = quad::quad_stats(lod);
 
       // Where this LOD switches in (share of screen height): the config's own screen size, else where its
-      // measured error is one pixel; never above the previous LOD's, so the chain is a valid MSFT_lod series.
+      // measured error covers lod_switch.error_px pixels; never above the previous LOD's (a valid MSFT_lod
+      // series).
       double coverage = spec.target.kind == TargetKind::screen_size
                             ? spec.target.screen.screen_coverage()
-                            : kCoverageErrorPx / (kCoverageScreenPx * std::max(e.hausdorff_rel(), 1e-12));
+                            : coverage_for_error(e.hausdorff_rel(), config_.lod_switch.error_px,
+                                                 config_.lod_switch.screen_height_px);
       coverage = std::clamp(coverage, 0.0, coverage_above);
       coverage_above = coverage;
       job.coverage.push_back(coverage);
@@ -713,7 +713,8 @@ class Pipeline {
                       {"irregular_vertices", quads.irregular_vertices},
                       {"stop_reason", stop},
                       {"seconds", seconds},
-                      {"screen_coverage", coverage}});
+                      {"screen_coverage", coverage},
+                      {"shows_previous", job.shows_previous[k]}});
     }
     job.coverage.push_back(0.0);  // the coarsest LOD is never culled
     for (std::size_t k = 1; k < lods.size(); ++k) {
@@ -1188,6 +1189,7 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
   const std::string tag =
       options.shard ? std::to_string(options.shard->index) + "-of-" + std::to_string(options.shard->count) : "0-of-1";
   const std::string report_stem = options.shard ? "report.shard-" + tag : "report";
+  const std::string manifest_stem = options.shard ? "lods.shard-" + tag : "lods";
 
   // Scan (sorted), shard, classify.
   Selection sel = select_assets(options);
@@ -1199,7 +1201,7 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
   const Cache cache(options.output_dir, tag);
 
   cache.remove_leftovers(paths);
-  remove_report_leftovers(options.output_dir, {report_stem + ".json", report_stem + ".html"});
+  remove_report_leftovers(options.output_dir, {report_stem + ".json", report_stem + ".html", manifest_stem + ".json"});
 
   std::vector<Json> records(paths.size());
   std::vector<Pending> pending;
@@ -1373,6 +1375,11 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
   if (options.write_report) {
     result.report_path = options.output_dir / (report_stem + ".json");
     write_report(report, result.report_path, options.output_dir / (report_stem + ".html"));
+    // Entries of assets this run does not list stay while their files do: not after --prune, and not in a
+    // shard, which cannot tell a removed asset from another shard's.
+    const fs::path manifest = options.output_dir / (manifest_stem + ".json");
+    const bool keep_unlisted = !options.shard && !options.prune;
+    write_lods_manifest(lods_manifest(report, read_lods_manifest(manifest), keep_unlisted), manifest);
   }
   result.report = std::move(report);
   return result;

@@ -22,6 +22,7 @@
 
 #include "commands.hpp"
 #include "lodforge/batch/config.hpp"
+#include "lodforge/batch/lods_manifest.hpp"
 #include "lodforge/batch/report.hpp"
 #include "lodforge/batch/runner.hpp"
 #include "lodforge/batch/shard.hpp"
@@ -383,7 +384,9 @@ void register_run(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "run",
       "Build the LOD chains of every asset of a library as a config says (incremental, parallel).\n"
-      "Writes OUT_DIR/<same folders>/..., OUT_DIR/report.json and report.html, OUT_DIR/.lodforge-cache/.");
+      "Writes OUT_DIR/<same folders>/..., OUT_DIR/report.json and report.html, OUT_DIR/lods.json (per asset and\n"
+      "LOD: file, triangles, error, switch points for Unreal, Unity and Godot; docs/lods-json.md),\n"
+      "OUT_DIR/.lodforge-cache/.");
   cmd->add_option("--config", a->config, "batch config (JSON; see configs/schema.json)")->required();
   cmd->add_option("--input", a->input, "library folder (searched recursively)")->required();
   cmd->add_option("--output", a->output, "output folder (created)")->required();
@@ -426,7 +429,9 @@ void register_merge_reports(CLI::App& app) {
   auto out = std::make_shared<std::string>();
   auto inputs = std::make_shared<std::vector<std::string>>();
   CLI::App* cmd = app.add_subcommand(
-      "merge-reports", "Merge the report.json files of the shards of one run into one report (and its .html).");
+      "merge-reports",
+      "Merge the report.json files of the shards of one run into one report (and its .html), and write the\n"
+      "run's lods.json next to it.");
   cmd->add_option("output", *out, "merged report to write (.json; the page goes next to it as .html)")->required();
   cmd->add_option("reports", *inputs, "shard reports (report.shard-K-of-N.json)")->required();
   cmd->callback([out, inputs] {
@@ -449,6 +454,9 @@ void register_merge_reports(CLI::App& app) {
       fs::path html(*out);
       html.replace_extension(".html");
       batch::write_report(merged, *out, html);
+      // The manifest is a function of the report: the merged one gives what an unsharded run writes.
+      const fs::path manifest = fs::path(*out).parent_path() / "lods.json";
+      batch::write_lods_manifest(batch::lods_manifest(merged, batch::read_lods_manifest(manifest), false), manifest);
       std::printf("merged %zu reports: %llu assets (%llu ok, %llu failed, %llu skipped) -> %s\n", reports.size(),
                   merged["summary"]["assets"].get<unsigned long long>(),
                   merged["summary"]["succeeded"].get<unsigned long long>(),

@@ -83,6 +83,24 @@ struct ScreenSize {
   friend bool operator==(const ScreenSize&, const ScreenSize&) = default;
 };
 
+// The projection behind LOD switch points where the config gives no screen size (config key
+// `defaults.lod_switch`): a LOD switches in where its measured Hausdorff error covers `error_px` pixels of a
+// viewport `screen_height_px` tall; `fov_y_deg` (vertical) turns that into a camera distance for lods.json.
+struct LodSwitch {
+  double screen_height_px = 1080;
+  double error_px = 1;
+  double fov_y_deg = 60;
+  friend bool operator==(const LodSwitch&, const LodSwitch&) = default;
+};
+
+// The switch formulas, one copy for the glTF screen-coverage hints, report.json and lods.json (docs/lods-json.md).
+// Share of the screen height the bounding sphere's diameter covers when an error of `error_rel` (fraction of
+// the diagonal = of that diameter) covers `error_px` pixels: error_px / (screen_height_px * error_rel).
+double coverage_for_error(double error_rel, double error_px, double screen_height_px);
+// Camera distance at which a bounding sphere of `radius` covers `coverage` of the height of a view with
+// vertical field of view `fov_y_deg` (small-angle): radius / (coverage * tan(fov_y / 2)). Infinite at 0.
+double distance_for_coverage(double radius, double coverage, double fov_y_deg);
+
 struct LodTarget {
   TargetKind kind = TargetKind::ratio;
   double ratio = 0;           // kind ratio: in (0, 1]
@@ -144,6 +162,7 @@ struct BatchConfig {
   LodOptions defaults;  // built-in defaults < `defaults`
   OutputOptions output;
   RunLimits limits;
+  LodSwitch lod_switch;             // `defaults.lod_switch`
   std::vector<AssetClass> classes;  // in file order: the first class whose globs match wins
   std::string default_class;        // class of assets no glob matches; empty = such assets are skipped
 };

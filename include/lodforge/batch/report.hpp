@@ -10,7 +10,7 @@
 //                "outputs": [str], "lods": [{"level", "from", "target": {"kind", "value"}, "target_triangles",
 //                "triangles", "vertices", "ratio", "error_bound_abs", "error_bound_rel", "mean_rel", "rms_rel",
 //                "hausdorff_rel", "normal_deviation_mean_deg", "attributes": {name: float}, "quad_fraction",
-//                "irregular_vertices", "stop_reason", "seconds", "screen_coverage"}]}]}
+//                "irregular_vertices", "stop_reason", "seconds", "screen_coverage", "shows_previous"}]}]}
 //
 // "input.repeated_faces": faces that repeat an earlier face of their mesh (core repeated_faces()); simplify()
 // drops them before anything else (reports of earlier versions lack it).
@@ -21,7 +21,9 @@
 // to the source's bounding-box diagonal); "attributes" the attribute metrics eval provides (face-normal
 // deviation, per-stream attribute RMS, UV flips, chart spans and stretch, skinned pose error: runner.cpp
 // attribute_metrics() lists them); "quad_fraction" and "irregular_vertices" the LOD's quad structure (quads /
-// faces, interior vertices of valence != 4: quad::quad_stats); "screen_coverage" the LOD's MSFT_screencoverage entry (README, "Screen coverage").
+// faces, interior vertices of valence != 4: quad::quad_stats); "screen_coverage" the LOD's MSFT_screencoverage entry (README, "Screen coverage");
+// "shows_previous" true where the LOD was not 10% smaller than the level before and shows that level's meshes
+// (no file of its own; reports of earlier versions lack it). lods.json (lods_manifest.hpp) is built from this.
 //
 // "skipped": no class of the config matches the asset; "not_started": the run was stopped (Ctrl-C) before the
 // asset was reached (reports of earlier versions called those "skipped" and lack "not_started").

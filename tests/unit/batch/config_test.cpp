@@ -564,7 +564,7 @@ TEST(BatchConfigErrors, RedirectedKeys) {
 TEST(BatchConfigErrors, UnknownDefaultsKeyListsAllowedKeys) {
   EXPECT_EQ(error_with("/defaults/ratio", 0.5),
             expected(std::string("defaults.ratio: unknown key; allowed: ") + kOptionKeys +
-                     ", gltf_lods, post_process, write_source_lod0, asset_timeout_s"));
+                     ", gltf_lods, post_process, write_source_lod0, asset_timeout_s, lod_switch"));
 }
 
 TEST(BatchConfigErrors, OutputOptions) {

@@ -138,13 +138,15 @@ inline Library write_library(const fs::path& root, int count = 200) {
   return lib;
 }
 
-// Every file under `dir` except the cache and the reports: relative path -> bytes.
+// Every file under `dir` except the cache, the reports and the LOD manifests (lods.json, lods.shard-*.json;
+// lods_manifest_test.cpp checks those): relative path -> bytes.
 inline std::map<std::string, std::string> read_outputs(const fs::path& dir) {
   std::map<std::string, std::string> out;
   for (const auto& e : fs::recursive_directory_iterator(dir)) {
     if (!e.is_regular_file()) continue;
     const std::string rel = fs::relative(e.path(), dir).generic_string();
     if (rel.rfind(".lodforge-cache/", 0) == 0 || rel.rfind("report", 0) == 0) continue;
+    if (rel == "lods.json" || rel.rfind("lods.shard-", 0) == 0) continue;
     out[rel] = io::read_file(e.path());
   }
   return out;
