@@ -514,6 +514,14 @@ void render_data(std::string& out, const std::vector<const Asset*>& order) {
   column(out, "name", names, [&](std::string& o, const std::string& n) { append_json_string(o, n); });
   i = 0;
   column(out, "cls", order, [&](std::string& o, const Asset*) { o += std::to_string(class_ids[i++]); });
+  // Each asset's place in path order, so that sorting by path in the page compares numbers, not strings.
+  std::vector<std::size_t> by_path(order.size()), path_rank(order.size());
+  for (std::size_t k = 0; k < order.size(); ++k) by_path[k] = k;
+  std::stable_sort(by_path.begin(), by_path.end(), [&](std::size_t x, std::size_t y) {
+    return order[x]->path_or_empty() < order[y]->path_or_empty();
+  });
+  for (std::size_t k = 0; k < by_path.size(); ++k) path_rank[by_path[k]] = k;
+  column(out, "pr", path_rank, [](std::string& o, std::size_t r) { o += std::to_string(r); });
   column(out, "st", order, [](std::string& o, const Asset* a) { o += std::to_string(status_code(a->status)); });
   column(out, "hit", order, [](std::string& o, const Asset* a) {
     o += a->cache_hit ? (*a->cache_hit ? "1" : "0") : "null";
@@ -641,16 +649,16 @@ pre { background: var(--head); padding: 8px 12px; overflow-x: auto; font-size: 1
 )css";
 
 
-// The assets table, drawn by the page from the data block: one row per asset, 100 to a page, filtered by
-// search text, class and status, sorted by any column (ties keep the worst-first rank). A row expands to its
-// LODs and a plot of error against triangles, the chain from the source connected, on the report's shared
-// log axes (errors of zero sit on a row of their own below the lowest decade).
+// The assets table, drawn by the page from the data block: one row per asset, 50 to a page (a redraw costs what
+// its rows cost), filtered by search text, class and status, sorted by any column (ties keep the worst-first
+// rank). A row expands to its LODs and a plot of error against triangles, the chain from the source connected,
+// on the report's shared log axes (errors of zero sit on a row of their own below the lowest decade).
 constexpr std::string_view kScript = R"js(
 (function () {
   "use strict";
   var el = document.getElementById("report-data");
   if (!el) return;
-  var D = JSON.parse(el.textContent), n = D.st.length, PAGE = 100;
+  var D = JSON.parse(el.textContent), n = D.st.length, PAGE = 50;
   var STATUS = ["ok", "failed", "skipped", "not started", "?"];
   var off = new Int32Array(n + 1), worst = new Float64Array(n), missed = new Uint8Array(n), low = new Array(n);
   var i, k;
@@ -691,16 +699,21 @@ constexpr std::string_view kScript = R"js(
     if (D.st[a] === 0 && missed[a]) return "budget missed";
     return STATUS[D.st[a]];
   }
-  // Columns: label, sort key (number or string; null sorts last), cell HTML.
+  // Sort keys are numbers (strings by their rank: paths from the data's "pr", classes by name; statuses by
+  // severity), so a sort compares doubles only.
+  var classRank = D.classes.map(function (c, k) { return k; }).sort(function (x, y) {
+    return D.classes[x] < D.classes[y] ? -1 : D.classes[x] > D.classes[y] ? 1 : 0;
+  }).reduce(function (r, c, k) { r[c] = k; return r; }, []);
+  // Columns: label, sort key (a number; null sorts last), cell HTML.
   var COLS = [
     ["#", function (a) { return a; }, function (a) { return String(a + 1); }, "num"],
-    ["asset", function (a) { return low[a]; }, function (a) {
+    ["asset", function (a) { return D.pr[a]; }, function (a) {
       if (D.dir[a] < 0) return DASH;
       return '<span class="dir">' + esc(D.dirs[D.dir[a]]) + '</span><span class="file">' + esc(D.name[a]) + "</span>";
     }, "path"],
-    ["class", function (a) { return D.cls[a] < 0 ? null : D.classes[D.cls[a]]; },
+    ["class", function (a) { return D.cls[a] < 0 ? null : classRank[D.cls[a]]; },
       function (a) { return D.cls[a] < 0 ? DASH : esc(D.classes[D.cls[a]]); }, ""],
-    ["status", function (a) { return statusText(a); }, function (a) {
+    ["status", function (a) { return D.st[a] === 1 ? 0 : D.st[a] === 0 ? (missed[a] ? 1 : 2) : D.st[a] + 1; }, function (a) {
       var s = statusText(a);
       return '<span class="' + (s === "ok" ? "st-ok" : s === "failed" || s === "budget missed" ? "st-failed" : "st-skipped") +
         '">' + esc(s) + "</span>";
@@ -747,14 +760,13 @@ constexpr std::string_view kScript = R"js(
     var idx = new Int32Array(n);
     for (var a = 0; a < n; a++) idx[a] = a;
     if (state.sort !== 0 || state.dir !== 1) {
-      var key = COLS[state.sort][1], keys = new Array(n), dir = state.dir;
-      for (a = 0; a < n; a++) keys[a] = key(a);
+      var key = COLS[state.sort][1], keys = new Float64Array(n), dir = state.dir, v;
+      for (a = 0; a < n; a++) { v = key(a); keys[a] = v === null || v === undefined ? NaN : v; }
       idx.sort(function (x, y) {
         var p = keys[x], r = keys[y];
-        if (p === null && r !== null) return 1;
-        if (r === null && p !== null) return -1;
-        if (p !== null && p !== r) return (p < r ? -1 : 1) * dir;
-        return x - y;
+        if (p !== p) return r !== r ? x - y : 1;  // NaN: absent, last in both directions
+        if (r !== r) return -1;
+        return p === r ? x - y : p < r ? -dir : dir;
       });
     }
     sorted = idx;

@@ -6,7 +6,7 @@
 // The page is self-contained: inline CSS and script, no network (a Content-Security-Policy meta tag forbids every
 // external load, so a stray reference would show as blocked rather than phone home). It is sized for libraries
 // of 100 000 assets: the table is not markup but compact columnar JSON in a <script type="application/json">
-// block (about 300 bytes per asset), drawn by the page 100 rows at a time. Sections, top to bottom:
+// block (about 250 bytes per asset), drawn by the page 50 rows at a time. Sections, top to bottom:
 //   - header: lodforge version, config file, input and output folders, jobs, shard and the summary figures;
 //   - changes since the previous run (report.json "changes"), when present;
 //   - failures: path and error of failed assets (the first 200; the table filters by status for all);

@@ -228,7 +228,7 @@ TEST(ReportHtml, TableHasOneRowPerAssetWithItsLods) {
   for (const char* column : {"lv", "tgt", "ttri", "tri", "eb", "mean", "h", "sc", "bud", "why", "stop"}) {
     EXPECT_EQ(d[column].size(), 15U) << column;
   }
-  for (const char* column : {"dir", "name", "cls", "st", "hit", "itri", "ib", "ob", "nl"}) {
+  for (const char* column : {"dir", "name", "cls", "pr", "st", "hit", "itri", "ib", "ob", "nl"}) {
     EXPECT_EQ(d[column].size(), 8U) << column;
   }
 }
