@@ -46,6 +46,22 @@ else
   echo "setup: npm not found; glTF validator tests will be skipped"
 fi
 
+# puppeteer-core (npm), which drives the Debian chromium for the report.html browser test and
+# `scripts/bench.sh report`. Optional: those skip without it. Kept apart from the validator block above.
+PUPPETEER_VERSION=23.11.1
+if command -v npm >/dev/null 2>&1; then
+  if [ ! -f tools/node/node_modules/puppeteer-core/package.json ] ||
+     ! grep -q "\"version\": \"$PUPPETEER_VERSION\"" tools/node/node_modules/puppeteer-core/package.json; then
+    echo "setup: installing puppeteer-core@$PUPPETEER_VERSION into tools/node"
+    mkdir -p tools/node
+    npm install --silent --no-audit --no-fund --prefix tools/node "puppeteer-core@$PUPPETEER_VERSION" >/dev/null 2>&1 ||
+      echo "setup: warning: npm install of puppeteer-core failed; report.html browser checks will be skipped"
+  fi
+fi
+if ! command -v chromium >/dev/null 2>&1; then
+  echo "setup: chromium not found (apt-get install chromium); report.html browser checks will be skipped"
+fi
+
 JOBS=${JOBS:-$(nproc)}
 read -r -a targets <<< "${TARGETS:-}"
 cmake -S . -B "$BUILD_DIR" -G Ninja "${cmake_options[@]}" >/dev/null
