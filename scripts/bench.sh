@@ -17,6 +17,9 @@
 #   scripts/bench.sh quad [ARGS...]       only lodforge_bench_quad (polychord engine vs edge_collapse and meshopt on
 #                                         the quad corpus at 50/25/10%, plus a generated 100k-quad torus; --ratios,
 #                                         --mesh FILE, --input DIR, --generated-quads N, --no-generated)
+#   scripts/bench.sh report [ARGS...]     only lodforge_bench_report (report.html for 100 000 assets in headless
+#                                         Chromium: load <= 3 s, filter/sort <= 200 ms, <= 1 KB per asset;
+#                                         --assets N, --reps N, --out DIR; needs node + puppeteer-core + chromium)
 #   scripts/bench.sh budget [ARGS...]     only lodforge_bench_budget (error budgets, docs/budgets.md: the LOD simplify()
 #                                         makes with a budget vs its reported bound and the measured Hausdorff, vs
 #                                         the longest holding prefix of the same collapse sequence and vs meshopt at
@@ -78,7 +81,18 @@ QUAD="$BUILD_DIR/tests/bench/lodforge_bench_quad"
 ATTRIBUTES="$BUILD_DIR/tests/bench/lodforge_bench_attributes"
 EVAL="$BUILD_DIR/tests/bench/lodforge_bench_eval"
 BUDGET="$BUILD_DIR/tests/bench/lodforge_bench_budget"
-for b in "$SIMPLIFY" "$LOAD" "$BATCH" "$QUAD" "$ATTRIBUTES" "$EVAL" "$BUDGET"; do
+REPORT="$BUILD_DIR/tests/bench/lodforge_bench_report"
+mode=all
+case "${1:-}" in
+  simplify | load | batch | quad | attributes | eval | budget | report) mode=$1; shift ;;
+esac
+# The binaries this mode runs must be built (the combined mode runs simplify, load and batch).
+case $mode in
+  all) needed=("$SIMPLIFY" "$LOAD" "$BATCH") ;;
+  simplify) needed=("$SIMPLIFY") ;; load) needed=("$LOAD") ;; batch) needed=("$BATCH") ;; quad) needed=("$QUAD") ;;
+  attributes) needed=("$ATTRIBUTES") ;; eval) needed=("$EVAL") ;; budget) needed=("$BUDGET") ;; report) needed=("$REPORT") ;;
+esac
+for b in "${needed[@]}"; do
   if [ ! -x "$b" ]; then
     echo "bench: $b is missing (configure with -DLODFORGE_BUILD_BENCH=ON and build)" >&2
     exit 2
@@ -86,11 +100,6 @@ for b in "$SIMPLIFY" "$LOAD" "$BATCH" "$QUAD" "$ATTRIBUTES" "$EVAL" "$BUDGET"; d
 done
 OUT_DIR="$BUILD_DIR/bench"
 mkdir -p "$OUT_DIR"
-
-mode=all
-case "${1:-}" in
-  simplify | load | batch | quad | attributes | eval | budget) mode=$1; shift ;;
-esac
 
 run_simplify() {
   local has_json=0
@@ -115,6 +124,7 @@ case $mode in
   quad) "$QUAD" "$@" ;;
   eval) "$EVAL" "$@" ;;
   budget) "$BUDGET" "$@" ;;
+  report) "$REPORT" --out "$OUT_DIR/report" "$@" ;;
   attributes) "$ATTRIBUTES" --json "$OUT_DIR/bench-attributes.json" "$@" ;;
   all)
     load_args=()

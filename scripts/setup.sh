@@ -47,33 +47,32 @@ else
   echo "setup: npm not found; glTF validator tests will be skipped"
 fi
 
-# ---- MSFT_lod client check: Babylon.js in headless Chromium (tests/client/msft_lod_client.mjs) ----
-# Optional: the test skips with a message without node, these npm packages or Chromium. puppeteer-core is
-# installed here only when no version of it is there yet.
+# ---- Browser checks: headless Chromium driven by puppeteer-core (npm) ----
+# Used by the report.html browser test, `scripts/bench.sh report` and the MSFT_lod client test (Babylon.js,
+# tests/client/msft_lod_client.mjs). Optional: each skips with a message without node, these packages or Chromium.
+PUPPETEER_VERSION=25.16.0
 BABYLON_VERSION=9.28.0
-CLIENT_PUPPETEER_VERSION=25.16.0
 if command -v npm >/dev/null 2>&1; then
-  client_missing=()
-  for pkg in babylonjs babylonjs-loaders; do
+  browser_missing=()
+  for spec in "puppeteer-core@$PUPPETEER_VERSION" "babylonjs@$BABYLON_VERSION" "babylonjs-loaders@$BABYLON_VERSION"; do
+    pkg=${spec%@*}
     if [ ! -f "tools/node/node_modules/$pkg/package.json" ] ||
-       ! grep -q "\"version\": \"$BABYLON_VERSION\"" "tools/node/node_modules/$pkg/package.json"; then
-      client_missing+=("$pkg@$BABYLON_VERSION")
+       ! grep -q "\"version\": \"${spec##*@}\"" "tools/node/node_modules/$pkg/package.json"; then
+      browser_missing+=("$spec")
     fi
   done
-  [ -f tools/node/node_modules/puppeteer-core/package.json ] ||
-    client_missing+=("puppeteer-core@$CLIENT_PUPPETEER_VERSION")
-  if [ ${#client_missing[@]} -gt 0 ]; then
-    echo "setup: installing ${client_missing[*]} into tools/node"
+  if [ ${#browser_missing[@]} -gt 0 ]; then
+    echo "setup: installing ${browser_missing[*]} into tools/node"
     mkdir -p tools/node
-    npm install --silent --no-audit --no-fund --prefix tools/node "${client_missing[@]}" >/dev/null 2>&1 ||
-      echo "setup: warning: npm install of ${client_missing[*]} failed; the MSFT_lod client test will be skipped"
+    npm install --silent --no-audit --no-fund --prefix tools/node "${browser_missing[@]}" >/dev/null 2>&1 ||
+      echo "setup: warning: npm install of ${browser_missing[*]} failed; the browser checks will be skipped"
   fi
 fi
 if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/null 2>&1; then
   install_packages chromium ||
-    echo "setup: warning: could not install chromium; the MSFT_lod client test will be skipped"
+    echo "setup: warning: could not install chromium; the browser checks will be skipped"
 fi
-# ---- end of the MSFT_lod client check ----
+# ---- end of the browser checks ----
 
 JOBS=${JOBS:-$(nproc)}
 read -r -a targets <<< "${TARGETS:-}"

@@ -1,8 +1,11 @@
 #include "lodforge/batch/report.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
+#include <map>
 #include <set>
+#include <cstdio>
 #include <stdexcept>
 
 #include "lodforge/batch/report_html.hpp"
@@ -282,6 +285,163 @@ Json merge_reports(const std::vector<Json>& reports) {
   merged["summary"] = report_summary(list, seconds);
   merged["assets"] = std::move(list);
   return merged;
+}
+
+namespace {
+
+// "assets" as path -> record, skipping entries that are not objects with a string path.
+std::map<std::string, const Json*> assets_by_path(const Json& report) {
+  std::map<std::string, const Json*> out;
+  if (!report.is_object()) return out;
+  const auto it = report.find("assets");
+  if (it == report.end() || !it->is_array()) return out;
+  for (const Json& a : *it) {
+    if (!a.is_object()) continue;
+    const auto p = a.find("path");
+    if (p != a.end() && p->is_string()) out.emplace(p->get<std::string>(), &a);
+  }
+  return out;
+}
+
+std::string string_field(const Json& j, const char* key) {
+  const auto it = j.find(key);
+  return it != j.end() && it->is_string() ? it->get<std::string>() : std::string();
+}
+
+Json number_field(const Json& j, const char* key) {
+  const auto it = j.find(key);
+  return it != j.end() && it->is_number() && std::isfinite(it->get<double>()) ? *it : Json(nullptr);
+}
+
+// More than 5% of the previous value; any change from zero; appearing or vanishing counts.
+bool moved(const Json& before, const Json& after) {
+  if (before.is_null() || after.is_null()) return before.is_null() != after.is_null();
+  const double a = before.get<double>(), b = after.get<double>();
+  return std::abs(b - a) > 0.05 * std::abs(a) && a != b;
+}
+
+const Json& lods_of(const Json& asset) {
+  static const Json kEmpty = Json::array();
+  const auto it = asset.find("lods");
+  return it != asset.end() && it->is_array() ? *it : kEmpty;
+}
+
+}  // namespace
+
+Json diff_reports(const Json& previous, const Json& current) {
+  const auto before = assets_by_path(previous), after = assets_by_path(current);
+  Json added = Json::array(), removed = Json::array(), rebuilt = Json::array(), status = Json::array(),
+       lods = Json::array();
+  for (const auto& [path, a] : before) {
+    if (!after.count(path)) removed.push_back(path);
+  }
+  for (const auto& [path, b] : after) {
+    const auto it = before.find(path);
+    if (it == before.end()) {
+      added.push_back(path);
+      continue;
+    }
+    const Json& a = *it->second;
+    const std::string sa = string_field(a, "status"), sb = string_field(*b, "status");
+    if (sa != sb) status.push_back({{"path", path}, {"from", sa}, {"to", sb}});
+    const auto hit = b->find("cache_hit");
+    if (sb == "ok" && !(hit != b->end() && hit->is_boolean() && hit->get<bool>())) rebuilt.push_back(path);
+    const Json &la = lods_of(a), &lb = lods_of(*b);
+    for (std::size_t k = 0; k < std::min(la.size(), lb.size()); ++k) {
+      if (!la[k].is_object() || !lb[k].is_object()) continue;
+      const Json ta = number_field(la[k], "triangles"), tb = number_field(lb[k], "triangles");
+      const Json ha = number_field(la[k], "hausdorff_rel"), hb = number_field(lb[k], "hausdorff_rel");
+      Json which = Json::array();
+      if (moved(ta, tb)) which.push_back("triangles");
+      if (moved(ha, hb)) which.push_back("hausdorff_rel");
+      if (which.empty()) continue;
+      const Json level = number_field(lb[k], "level");
+      lods.push_back({{"path", path},
+                      {"level", level.is_null() ? Json(k + 1) : level},
+                      {"triangles", {ta, tb}},
+                      {"hausdorff_rel", {ha, hb}},
+                      {"moved", std::move(which)}});
+    }
+    if (la.size() != lb.size() && sa == "ok" && sb == "ok") {
+      lods.push_back({{"path", path},
+                      {"level", nullptr},
+                      {"triangles", {nullptr, nullptr}},
+                      {"hausdorff_rel", {nullptr, nullptr}},
+                      {"lod_count", {la.size(), lb.size()}},
+                      {"moved", {"lod_count"}}});
+    }
+  }
+  return {{"previous_assets", before.size()}, {"added", std::move(added)},      {"removed", std::move(removed)},
+          {"rebuilt", std::move(rebuilt)},   {"status_changed", std::move(status)}, {"lods_moved", std::move(lods)}};
+}
+
+namespace {
+
+std::string number_text(const Json& v, bool percent) {
+  if (!v.is_number()) return "-";
+  char buf[64];
+  if (percent) {
+    std::snprintf(buf, sizeof buf, "%.4f%%", v.get<double>() * 100.0);
+  } else {
+    std::snprintf(buf, sizeof buf, "%.0f", v.get<double>());
+  }
+  return buf;
+}
+
+const Json& list_of(const Json& changes, const char* key) {
+  static const Json kEmpty = Json::array();
+  if (!changes.is_object()) return kEmpty;
+  const auto it = changes.find(key);
+  return it != changes.end() && it->is_array() ? *it : kEmpty;
+}
+
+}  // namespace
+
+std::string changes_text(const Json& changes, std::size_t max_lines) {
+  const Json &added = list_of(changes, "added"), &removed = list_of(changes, "removed"),
+             &rebuilt = list_of(changes, "rebuilt"), &status = list_of(changes, "status_changed"),
+             &lods = list_of(changes, "lods_moved");
+  std::string out = std::to_string(added.size()) + " added, " + std::to_string(removed.size()) + " removed, " +
+                    std::to_string(rebuilt.size()) + " rebuilt, " + std::to_string(status.size()) +
+                    " changed status, " + std::to_string(lods.size()) + " LODs moved by more than 5%\n";
+  const auto section = [&](const Json& list, const char* title, auto line) {
+    if (list.empty()) return;
+    out += std::string(title) + ":\n";
+    std::size_t n = 0;
+    for (const Json& e : list) {
+      if (max_lines != 0 && n == max_lines) {
+        out += "  ... and " + std::to_string(list.size() - n) + " more\n";
+        break;
+      }
+      out += "  " + line(e) + "\n";
+      ++n;
+    }
+  };
+  const auto path = [](const Json& e) { return e.is_string() ? e.get<std::string>() : std::string("?"); };
+  section(added, "added", path);
+  section(removed, "removed", path);
+  section(rebuilt, "rebuilt", path);
+  section(status, "status changed", [](const Json& e) {
+    return string_field(e, "path") + ": " + string_field(e, "from") + " -> " + string_field(e, "to");
+  });
+  section(lods, "LODs moved", [](const Json& e) {
+    if (!e.is_object()) return std::string("?");
+    const std::string path = string_field(e, "path");
+    if (const auto c = e.find("lod_count"); c != e.end() && c->is_array() && c->size() == 2) {
+      return path + ": " + number_text((*c)[0], false) + " -> " + number_text((*c)[1], false) + " LODs";
+    }
+    const Json level = number_field(e, "level");
+    std::string s = path + " LOD" + number_text(level, false) + ":";
+    const auto pair = [&](const char* key, bool percent, const char* label) {
+      const auto it = e.find(key);
+      if (it == e.end() || !it->is_array() || it->size() != 2) return;
+      s += std::string(" ") + label + " " + number_text((*it)[0], percent) + " -> " + number_text((*it)[1], percent);
+    };
+    pair("triangles", false, "triangles");
+    pair("hausdorff_rel", true, "Hausdorff");
+    return s;
+  });
+  return out;
 }
 
 void write_report(const Json& report, const std::filesystem::path& json_path, const std::filesystem::path& html_path) {

@@ -1,13 +1,12 @@
-// report.html: the batch report as one self-contained page (issue 5, "Report").
+// report.html: the batch report as one self-contained page.
 //
-// No papers here: this file is presentation. Error goes on a log axis because a LOD chain spans decades of error;
-// the kept fraction of triangles goes on x, log too when a class's ratios span a decade. The driver is a pipeline
-// of small passes:
+// The page has to stay usable for libraries of 100 000 assets, so the table is not markup: the report is reduced
+// to compact columnar JSON in the page, and a small script draws one page of rows at a time, filters, sorts and
+// expands rows. The pipeline:
 //   read_assets      the document's "assets" array -> a typed model; anything missing or malformed is "absent"
-//   order_rows       one row per asset x LOD, worst first
+//   order_assets     one row per asset, worst first (the data's order; the script's default)
 //   render_*         one function per page section, each appending to the page
-// SVG is written by hand rather than by a plotting library: two chart kinds, deterministic bytes, no
-// dependency, and nothing the page would have to fetch.
+// The small, bounded sections (header, changes, failures, worst assets, config) are rendered here as HTML/SVG.
 #include "lodforge/batch/report_html.hpp"
 
 #include <algorithm>
@@ -35,6 +34,7 @@ constexpr std::string_view kEllipsis = "\xE2\x80\xA6";     // "…"
 constexpr std::string_view kNarrowSpace = "\xE2\x80\xAF";  // digit grouping in counts: "1 234 567"
 constexpr std::size_t kWorstAssets = 10;                   // bars in the worst-assets chart
 constexpr std::size_t kBarLabelCodePoints = 40;            // longer paths keep their tail (the file name)
+constexpr std::size_t kProblemRows = 200;                  // failed or skipped assets listed in full above the table
 
 // ---------------------------------------------------------------------------------------------------------------
 // Text: escaping and number formatting. Both are byte-exact and locale-independent (std::to_chars), which is what
@@ -153,13 +153,6 @@ std::string fixed(double v, int decimals) {
   return trim_negative_zero(std::string(buf.data(), r.ptr));
 }
 
-// Shortest round-trip form: sort keys in data-v attributes, which the page's script parses back.
-std::string shortest(double v) {
-  std::array<char, 64> buf{};
-  const auto r = std::to_chars(buf.data(), buf.data() + buf.size(), v);
-  return std::string(buf.data(), r.ptr);
-}
-
 // Whole numbers as integers, others with six significant digits: target values (0.25, 5000, 0.005).
 std::string compact(double v) {
   if (std::abs(v) < 1e15 && v == std::floor(v)) return fixed(v, 0);
@@ -180,10 +173,6 @@ std::string count(double v) {
     out += digits[sign + k];
   }
   return out;
-}
-
-std::string percent(double fraction) {
-  return fixed(fraction * 100.0, 4);
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -246,6 +235,7 @@ struct Lod {
   std::optional<double> quad_fraction;  // quads / faces of the LOD
   std::optional<std::string> stop_reason;
   std::optional<double> seconds;
+  std::optional<double> screen_coverage;
   std::optional<std::string> budget;  // "met", or "missed: " and the reasons
   bool missed() const { return budget && budget->starts_with("missed"); }
 };
@@ -259,6 +249,12 @@ struct Asset {
   std::optional<double> seconds;
   std::vector<Lod> lods;
   std::optional<double> max_hausdorff_rel;  // over the LODs: the asset's worst measured error
+  std::optional<double> input_triangles;
+  std::optional<double> input_bytes;   // the source's mesh data on disk
+  std::optional<double> output_bytes;  // everything written for the asset
+  bool missed() const {
+    return std::any_of(lods.begin(), lods.end(), [](const Lod& l) { return l.missed(); });
+  }
 
   bool failed() const { return status == "failed"; }
   std::string_view path_or_empty() const { return path ? std::string_view(*path) : std::string_view(); }
@@ -284,6 +280,7 @@ Lod read_lod(const json& j) {
   lod.quad_fraction = number(j, "quad_fraction");
   lod.stop_reason = text(j, "stop_reason");
   lod.seconds = number(j, "seconds");
+  lod.screen_coverage = number(j, "screen_coverage");
   const json& budget = member(j, "budget");
   if (const std::optional<std::string> status = text(budget, "status")) {
     std::string b = *status;
@@ -312,6 +309,9 @@ std::vector<Asset> read_assets(const json& report) {
     a.error = text(j, "error");
     a.cache_hit = flag(j, "cache_hit");
     a.seconds = number(j, "seconds");
+    a.input_triangles = number(member(j, "input"), "triangles");
+    a.input_bytes = number(member(j, "input"), "bytes");
+    a.output_bytes = number(j, "output_bytes");
     const json& lods = member(j, "lods");
     if (lods.is_array()) {
       for (const json& l : lods) {
@@ -325,34 +325,260 @@ std::vector<Asset> read_assets(const json& report) {
   }
   return assets;
 }
-
 // ---------------------------------------------------------------------------------------------------------------
-// The table's rows, worst first.
+// Order: one row per asset, worst first.
 
-struct Row {
-  const Asset* asset = nullptr;
-  const Lod* lod = nullptr;  // nullptr: an asset without LODs (failed, skipped), shown as one row of its own
-};
-
-// Failed assets on top (they have no error to compare), then LODs that missed their budget, then larger
-// Hausdorff first, rows without a measurement last; ties by path, then document order (stable sort).
-std::vector<Row> order_rows(const std::vector<Asset>& assets) {
-  std::vector<Row> rows;
-  for (const Asset& a : assets) {
-    if (a.lods.empty()) rows.push_back({&a, nullptr});
-    for (const Lod& l : a.lods) rows.push_back({&a, &l});
-  }
-  const auto hausdorff = [](const Row& r) { return r.lod ? r.lod->hausdorff_rel : std::nullopt; };
-  std::stable_sort(rows.begin(), rows.end(), [&](const Row& x, const Row& y) {
-    if (x.asset->failed() != y.asset->failed()) return x.asset->failed();
-    const bool mx = x.lod && x.lod->missed(), my = y.lod && y.lod->missed();
-    if (mx != my) return mx;
-    const std::optional<double> hx = hausdorff(x), hy = hausdorff(y);
+// Failed assets on top (they have no error to compare), then assets with a LOD that missed its budget, then by
+// the largest Hausdorff distance over their LODs, unmeasured last; ties by path, then document order.
+std::vector<const Asset*> order_assets(const std::vector<Asset>& assets) {
+  std::vector<const Asset*> order;
+  order.reserve(assets.size());
+  for (const Asset& a : assets) order.push_back(&a);
+  std::stable_sort(order.begin(), order.end(), [](const Asset* x, const Asset* y) {
+    if (x->failed() != y->failed()) return x->failed();
+    if (x->missed() != y->missed()) return x->missed();
+    const std::optional<double> hx = x->max_hausdorff_rel, hy = y->max_hausdorff_rel;
     if (hx.has_value() != hy.has_value()) return hx.has_value();
     if (hx && *hx != *hy) return *hx > *hy;
-    return x.asset->path_or_empty() < y.asset->path_or_empty();
+    return x->path_or_empty() < y->path_or_empty();
   });
-  return rows;
+  return order;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// The page's data: the report reduced to what the table and plots show, as compact columnar JSON inside a
+// non-executed <script type="application/json"> block (a file next to the page cannot be read from file://).
+// Floats keep four significant digits, which is what the page displays; strings that repeat (directories,
+// classes, targets, stop reasons, budget reasons) are listed once and referred to by index.
+
+// A JSON number with 4 significant digits (or an integer), or null when absent.
+void append_number(std::string& out, const std::optional<double>& v) {
+  if (!v) {
+    out += "null";
+    return;
+  }
+  if (std::abs(*v) < 1e15 && *v == std::floor(*v)) {
+    out += fixed(*v, 0);
+    return;
+  }
+  std::array<char, 64> buf{};
+  const auto r = std::to_chars(buf.data(), buf.data() + buf.size(), *v, std::chars_format::general, 4);
+  std::string s(buf.data(), r.ptr);
+  if (s.find_first_of("eE") != std::string::npos) {  // "1.5e-05" is valid JSON; strip a redundant "+"
+    const std::size_t plus = s.find('+');
+    if (plus != std::string::npos) s.erase(plus, 1);
+  }
+  out += trim_negative_zero(s);
+}
+
+// A JSON string: the same replacement of bytes HTML cannot carry as everywhere else, JSON-escaped, and "<"
+// written as \u003c so that no "</script" can end the data block early.
+void append_json_string(std::string& out, std::string_view s) {
+  std::string clean;
+  clean.reserve(s.size());
+  for (std::size_t i = 0; i < s.size();) {
+    const auto b = static_cast<unsigned char>(s[i]);
+    if ((b < 0x20 && s[i] != '\t' && s[i] != '\n' && s[i] != '\r') || b == 0x7F) {
+      clean += kReplacement;
+      ++i;
+      continue;
+    }
+    const std::size_t length = utf8_sequence_length(s, i);
+    if (length == 0 || (length == 2 && b == 0xC2 && static_cast<unsigned char>(s[i + 1]) <= 0x9F)) {
+      clean += kReplacement;
+      i += length == 0 ? 1 : 2;
+      continue;
+    }
+    clean.append(s.substr(i, length));
+    i += length;
+  }
+  const std::string dumped = json(clean).dump();
+  for (const char c : dumped) {
+    if (c == '<') {
+      out += "\\u003c";
+    } else if (c == '>') {
+      out += "\\u003e";
+    } else if (c == '&') {
+      out += "\\u0026";
+    } else {
+      out += c;
+    }
+  }
+}
+
+// Strings listed once: index by first appearance, so the same document gives the same table.
+class StringTable {
+ public:
+  int index(const std::string& s) {
+    const auto [it, inserted] = ids_.emplace(s, static_cast<int>(list_.size()));
+    if (inserted) list_.push_back(s);
+    return it->second;
+  }
+  int index(const std::optional<std::string>& s) { return s ? index(*s) : -1; }
+  void append(std::string& out) const {
+    out += '[';
+    for (std::size_t i = 0; i < list_.size(); ++i) {
+      if (i > 0) out += ',';
+      append_json_string(out, list_[i]);
+    }
+    out += ']';
+  }
+
+ private:
+  std::map<std::string, int> ids_;
+  std::vector<std::string> list_;
+};
+
+template <class T, class Get>
+void column(std::string& out, std::string_view name, const std::vector<T>& items, Get get) {
+  out += '"';
+  out += name;
+  out += "\":[";
+  for (std::size_t i = 0; i < items.size(); ++i) {
+    if (i > 0) out += ',';
+    get(out, items[i]);
+  }
+  out += "],\n";
+}
+
+int status_code(const std::optional<std::string>& status) {
+  if (status == "ok") return 0;
+  if (status == "failed") return 1;
+  if (status == "skipped") return 2;
+  if (status == "not_started") return 3;
+  return 4;
+}
+
+std::optional<double> percent_of(const std::optional<double>& fraction) {
+  if (!fraction || !std::isfinite(*fraction * 100.0)) return std::nullopt;
+  return *fraction * 100.0;
+}
+
+// The smallest positive value and the largest value over `values`; nullopt when none is positive.
+struct Range {
+  std::optional<double> lo, hi;
+  void add(const std::optional<double>& v) {
+    if (!v || !(*v > 0) || *v > 1e280) return;
+    if (!lo || *v < *lo) lo = *v;
+    if (!hi || *v > *hi) hi = *v;
+  }
+};
+
+void render_data(std::string& out, const std::vector<const Asset*>& order) {
+  StringTable dirs, classes, targets, stops, reasons;
+  struct Flat {
+    const Asset* asset;
+    const Lod* lod;
+  };
+  std::vector<Flat> lods;
+  Range triangles, errors;
+  for (const Asset* a : order) {
+    for (const Lod& l : a->lods) {
+      lods.push_back({a, &l});
+      triangles.add(l.triangles);
+      errors.add(percent_of(l.hausdorff_rel));
+      errors.add(percent_of(l.mean_rel));
+    }
+    triangles.add(a->input_triangles);
+  }
+  std::vector<int> dir_ids, class_ids;
+  std::vector<std::string> names;
+  for (const Asset* a : order) {
+    const std::string_view path = a->path_or_empty();
+    const std::size_t slash = path.rfind('/');
+    const std::string dir = slash == std::string_view::npos ? std::string() : std::string(path.substr(0, slash + 1));
+    dir_ids.push_back(a->path ? dirs.index(dir) : -1);
+    names.push_back(std::string(slash == std::string_view::npos ? path : path.substr(slash + 1)));
+    class_ids.push_back(classes.index(a->class_name));
+  }
+  std::vector<int> target_ids, stop_ids, reason_ids;
+  for (const Flat& f : lods) {
+    std::optional<std::string> target;
+    if (f.lod->target_kind || f.lod->target_value) {
+      target = f.lod->target_kind.value_or(std::string(kDash)) + ' ' +
+               (f.lod->target_value ? compact(*f.lod->target_value) : std::string(kDash));
+    }
+    target_ids.push_back(targets.index(target));
+    stop_ids.push_back(stops.index(f.lod->stop_reason));
+    std::optional<std::string> why;
+    if (f.lod->budget) {
+      const std::size_t colon = f.lod->budget->find(": ");
+      if (colon != std::string::npos) why = f.lod->budget->substr(colon + 2);
+    }
+    reason_ids.push_back(reasons.index(why));
+  }
+
+  out += "<script type=\"application/json\" id=\"report-data\">{\n";
+  std::size_t i = 0;
+  column(out, "dir", order, [&](std::string& o, const Asset*) { o += std::to_string(dir_ids[i++]); });
+  column(out, "name", names, [&](std::string& o, const std::string& n) { append_json_string(o, n); });
+  i = 0;
+  column(out, "cls", order, [&](std::string& o, const Asset*) { o += std::to_string(class_ids[i++]); });
+  // Each asset's place in path order, so that sorting by path in the page compares numbers, not strings.
+  std::vector<std::size_t> by_path(order.size()), path_rank(order.size());
+  for (std::size_t k = 0; k < order.size(); ++k) by_path[k] = k;
+  std::stable_sort(by_path.begin(), by_path.end(), [&](std::size_t x, std::size_t y) {
+    return order[x]->path_or_empty() < order[y]->path_or_empty();
+  });
+  for (std::size_t k = 0; k < by_path.size(); ++k) path_rank[by_path[k]] = k;
+  column(out, "pr", path_rank, [](std::string& o, std::size_t r) { o += std::to_string(r); });
+  column(out, "st", order, [](std::string& o, const Asset* a) { o += std::to_string(status_code(a->status)); });
+  column(out, "hit", order, [](std::string& o, const Asset* a) {
+    o += a->cache_hit ? (*a->cache_hit ? "1" : "0") : "null";
+  });
+  column(out, "itri", order, [](std::string& o, const Asset* a) { append_number(o, a->input_triangles); });
+  column(out, "ib", order, [](std::string& o, const Asset* a) { append_number(o, a->input_bytes); });
+  column(out, "ob", order, [](std::string& o, const Asset* a) { append_number(o, a->output_bytes); });
+  column(out, "nl", order, [](std::string& o, const Asset* a) { o += std::to_string(a->lods.size()); });
+  // Errors of assets that did not finish: sparse, most assets have none.
+  out += "\"err\":{";
+  bool first = true;
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    if (!order[k]->error) continue;
+    out += first ? "" : ",";
+    first = false;
+    out += '"' + std::to_string(k) + "\":";
+    append_json_string(out, *order[k]->error);
+  }
+  out += "},\n";
+  column(out, "lv", lods, [](std::string& o, const Flat& f) {
+    append_number(o, f.lod->level ? std::optional<double>(static_cast<double>(*f.lod->level)) : std::nullopt);
+  });
+  i = 0;
+  column(out, "tgt", lods, [&](std::string& o, const Flat&) { o += std::to_string(target_ids[i++]); });
+  column(out, "ttri", lods, [](std::string& o, const Flat& f) { append_number(o, f.lod->target_triangles); });
+  column(out, "tri", lods, [](std::string& o, const Flat& f) { append_number(o, f.lod->triangles); });
+  column(out, "eb", lods, [](std::string& o, const Flat& f) { append_number(o, percent_of(f.lod->error_bound_rel)); });
+  column(out, "mean", lods, [](std::string& o, const Flat& f) { append_number(o, percent_of(f.lod->mean_rel)); });
+  column(out, "h", lods, [](std::string& o, const Flat& f) { append_number(o, percent_of(f.lod->hausdorff_rel)); });
+  column(out, "sc", lods, [](std::string& o, const Flat& f) { append_number(o, f.lod->screen_coverage); });
+  column(out, "bud", lods, [](std::string& o, const Flat& f) {
+    o += !f.lod->budget ? "null" : f.lod->missed() ? "0" : "1";
+  });
+  i = 0;
+  column(out, "why", lods, [&](std::string& o, const Flat&) { o += std::to_string(reason_ids[i++]); });
+  i = 0;
+  column(out, "stop", lods, [&](std::string& o, const Flat&) { o += std::to_string(stop_ids[i++]); });
+  out += "\"dirs\":";
+  dirs.append(out);
+  out += ",\n\"classes\":";
+  classes.append(out);
+  out += ",\n\"targets\":";
+  targets.append(out);
+  out += ",\n\"stops\":";
+  stops.append(out);
+  out += ",\n\"reasons\":";
+  reasons.append(out);
+  // One pair of axes for every plot: the whole report's triangle and error ranges.
+  out += ",\n\"axes\":{\"tri\":[";
+  append_number(out, triangles.lo);
+  out += ',';
+  append_number(out, triangles.hi);
+  out += "],\"err\":[";
+  append_number(out, errors.lo);
+  out += ',';
+  append_number(out, errors.hi);
+  out += "]}\n}</script>\n";
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -384,7 +610,6 @@ th[aria-sort="ascending"]::after { content: " \25B2"; opacity: 1; }
 th[aria-sort="descending"]::after { content: " \25BC"; opacity: 1; }
 td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
 td.na { color: var(--muted); }
-td.path { word-break: break-all; min-width: 14em; }
 td.err { white-space: pre-wrap; word-break: break-word; }
 tr.failed td { background: #fdecea; }
 .st-failed { color: var(--bad); font-weight: 600; }
@@ -399,54 +624,263 @@ svg .grid { stroke: #e6e9ee; stroke-width: 1; }
 svg .minor { stroke: #f1f3f6; stroke-width: 1; }
 svg .frame { fill: none; stroke: #9aa1ab; stroke-width: 1; }
 svg .muted { fill: #5f6670; }
+.controls { margin: 8px 0; display: flex; gap: 8px; align-items: center; flex-wrap: wrap; }
+.controls input { min-width: 22em; padding: 3px 6px; }
+td.path { overflow-wrap: anywhere; min-width: 22em; }
+th:empty::after { content: none; }
+#assets td { white-space: nowrap; }
+#assets td.path { white-space: normal; }
+td.path .dir { color: var(--muted); }
+td.path .file { font-weight: 600; }
+tr.missed td { background: #fff6e5; }
+tr.expanded > td { background: #fafbfc; }
+button.toggle { border: 0; background: none; cursor: pointer; font-size: 13px; padding: 0 4px; }
+.detail { display: flex; gap: 16px; align-items: flex-start; flex-wrap: wrap; }
+table.lods th { position: static; cursor: default; }
+table.lods th::after { content: none; }
+svg.chain { background: #fff; border: 1px solid var(--line); }
+svg.chain polyline { fill: none; stroke-width: 1.5; }
+svg.chain polyline.haus { stroke: #e15759; }
+svg.chain polyline.mean { stroke: #4e79a7; stroke-dasharray: 4 3; }
+svg.chain circle.haus { fill: #e15759; }
+svg.chain circle.mean { fill: #4e79a7; }
+.muted { color: var(--muted); }
 pre { background: var(--head); padding: 8px 12px; overflow-x: auto; font-size: 12px; }
 )css";
 
-// Click (or Enter/Space on a focused header) sorts by that column; again reverses. Numeric columns sort on the
-// cell's data-v, text columns on its text; absent values ("–", class "na") stay last in both directions, and
-// ties fall back to the initial worst-first rank, so every order is deterministic.
+
+// The assets table, drawn by the page from the data block: one row per asset, 50 to a page (a redraw costs what
+// its rows cost), filtered by search text, class and status, sorted by any column (ties keep the worst-first
+// rank). A row expands to its LODs and a plot of error against triangles, the chain from the source connected,
+// on the report's shared log axes (errors of zero sit on a row of their own below the lowest decade).
 constexpr std::string_view kScript = R"js(
 (function () {
   "use strict";
-  function key(cell, numeric) {
-    if (!cell || cell.classList.contains("na")) return null;
-    if (!numeric) return cell.textContent;
-    var v = parseFloat(cell.getAttribute("data-v"));
-    return isNaN(v) ? null : v;
+  var el = document.getElementById("report-data");
+  if (!el) return;
+  var D = JSON.parse(el.textContent), n = D.st.length, PAGE = 50;
+  var STATUS = ["ok", "failed", "skipped", "not started", "?"];
+  var off = new Int32Array(n + 1), worst = new Float64Array(n), missed = new Uint8Array(n), low = new Array(n);
+  var i, k;
+  for (i = 0; i < n; i++) {
+    off[i + 1] = off[i] + D.nl[i];
+    var w = NaN, m = 0;
+    for (k = off[i]; k < off[i + 1]; k++) {
+      if (D.h[k] !== null && !(D.h[k] <= w)) w = D.h[k];
+      if (D.bud[k] === 0) m++;
+    }
+    worst[i] = w; missed[i] = m;
+    low[i] = path(i).toLowerCase();
   }
-  function sortTable(table, col) {
-    var head = table.tHead.rows[0].cells, th = head[col];
-    var ascending = th.getAttribute("aria-sort") !== "ascending";
-    for (var i = 0; i < head.length; i++) head[i].removeAttribute("aria-sort");
-    th.setAttribute("aria-sort", ascending ? "ascending" : "descending");
-    var numeric = th.getAttribute("data-type") === "num", dir = ascending ? 1 : -1;
-    var body = table.tBodies[0], rows = Array.prototype.slice.call(body.rows);
-    rows.sort(function (a, b) {
-      var x = key(a.cells[col], numeric), y = key(b.cells[col], numeric);
-      if (x === null && y !== null) return 1;
-      if (y === null && x !== null) return -1;
-      if (x !== null) {
-        var c = numeric ? x - y : x.localeCompare(y, undefined, { numeric: true });
-        if (c !== 0) return c < 0 ? -dir : dir;
-      }
-      return Number(a.getAttribute("data-rank")) - Number(b.getAttribute("data-rank"));
+  function path(a) { return D.dir[a] < 0 ? "" : D.dirs[D.dir[a]] + D.name[a]; }
+  function esc(s) {
+    return String(s).replace(/[&<>"']/g, function (c) {
+      return { "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" }[c];
     });
-    rows.forEach(function (r) { body.appendChild(r); });
   }
-  Array.prototype.forEach.call(document.querySelectorAll("table.sortable"), function (table) {
-    Array.prototype.forEach.call(table.tHead.rows[0].cells, function (th, col) {
-      th.tabIndex = 0;
-      th.title = "Sort by this column";
-      th.addEventListener("click", function () { sortTable(table, col); });
-      th.addEventListener("keydown", function (e) {
-        if (e.key === "Enter" || e.key === " ") { e.preventDefault(); sortTable(table, col); }
-      });
+  var DASH = "\u2013";
+  function num(v, d) { return v === null || v === undefined || isNaN(v) ? DASH : v.toFixed(d); }
+  function count(v) {
+    return v === null || v === undefined ? DASH : String(Math.round(v)).replace(/\B(?=(\d{3})+(?!\d))/g, "\u202f");
+  }
+  function bytes(v) {
+    if (v === null || v === undefined) return DASH;
+    if (v < 1024) return v + " B";
+    if (v < 1048576) return (v / 1024).toFixed(1) + " KB";
+    return (v / 1048576).toFixed(1) + " MB";
+  }
+  function lastTri(a) { return D.nl[a] ? D.tri[off[a + 1] - 1] : null; }
+  function coverage(a) {
+    var s = [];
+    for (var k = off[a]; k < off[a + 1]; k++) s.push(num(D.sc[k], 3));
+    return s.length ? s.join(" \u00b7 ") : DASH;
+  }
+  function statusText(a) {
+    if (D.st[a] === 0 && missed[a]) return "budget missed";
+    return STATUS[D.st[a]];
+  }
+  // Sort keys are numbers (strings by their rank: paths from the data's "pr", classes by name; statuses by
+  // severity), so a sort compares doubles only.
+  var classRank = D.classes.map(function (c, k) { return k; }).sort(function (x, y) {
+    return D.classes[x] < D.classes[y] ? -1 : D.classes[x] > D.classes[y] ? 1 : 0;
+  }).reduce(function (r, c, k) { r[c] = k; return r; }, []);
+  // Columns: label, sort key (a number; null sorts last), cell HTML.
+  var COLS = [
+    ["#", function (a) { return a; }, function (a) { return String(a + 1); }, "num"],
+    ["asset", function (a) { return D.pr[a]; }, function (a) {
+      if (D.dir[a] < 0) return DASH;
+      return '<span class="dir">' + esc(D.dirs[D.dir[a]]) + '</span><span class="file">' + esc(D.name[a]) + "</span>";
+    }, "path"],
+    ["class", function (a) { return D.cls[a] < 0 ? null : classRank[D.cls[a]]; },
+      function (a) { return D.cls[a] < 0 ? DASH : esc(D.classes[D.cls[a]]); }, ""],
+    ["status", function (a) { return D.st[a] === 1 ? 0 : D.st[a] === 0 ? (missed[a] ? 1 : 2) : D.st[a] + 1; }, function (a) {
+      var s = statusText(a);
+      return '<span class="' + (s === "ok" ? "st-ok" : s === "failed" || s === "budget missed" ? "st-failed" : "st-skipped") +
+        '">' + esc(s) + "</span>";
+    }, ""],
+    ["LODs", function (a) { return D.nl[a]; }, function (a) { return String(D.nl[a]); }, "num"],
+    ["input tris", function (a) { return D.itri[a]; }, function (a) { return count(D.itri[a]); }, "num"],
+    ["last LOD tris", lastTri, function (a) { return count(lastTri(a)); }, "num"],
+    ["worst Hausdorff %", function (a) { return isNaN(worst[a]) ? null : worst[a]; },
+      function (a) { return num(worst[a], 4); }, "num"],
+    ["budget", function (a) { return D.nl[a] ? missed[a] : null; }, function (a) {
+      if (!D.nl[a]) return DASH;
+      return missed[a] ? '<span class="st-failed">missed ' + missed[a] + "/" + D.nl[a] + "</span>" : "met";
+    }, ""],
+    ["screen coverage", function (a) { return D.nl[a] ? D.sc[off[a]] : null; }, coverage, "num"],
+    ["input size", function (a) { return D.ib[a]; }, function (a) { return bytes(D.ib[a]); }, "num"],
+    ["output size", function (a) { return D.ob[a]; }, function (a) { return bytes(D.ob[a]); }, "num"],
+    ["cache hit", function (a) { return D.hit[a]; },
+      function (a) { return D.hit[a] === null ? DASH : D.hit[a] ? "yes" : "no"; }, ""]
+  ];
+  var table = document.getElementById("assets"), body = table.tBodies[0];
+  var q = document.getElementById("q"), clsSel = document.getElementById("cls"), stSel = document.getElementById("st");
+  var info = document.getElementById("count"), pageInfo = document.getElementById("page");
+  var state = { sort: 0, dir: 1, page: 0, open: {} }, sorted = null, view = null;
+  D.classes.forEach(function (c, k) {
+    var o = document.createElement("option"); o.value = String(k); o.textContent = c; clsSel.appendChild(o);
+  });
+  var head = table.tHead.rows[0];
+  head.innerHTML = "<th></th>" + COLS.map(function (c) {
+    return '<th scope="col" tabindex="0" title="Sort by this column">' + esc(c[0]) + "</th>";
+  }).join("");
+  function sortBy(col) {
+    state.dir = state.sort === col ? -state.dir : 1;
+    state.sort = col; state.page = 0; sorted = null; update();
+  }
+  Array.prototype.forEach.call(head.cells, function (th, c) {
+    if (c === 0) return;
+    th.addEventListener("click", function () { sortBy(c - 1); });
+    th.addEventListener("keydown", function (e) {
+      if (e.key === "Enter" || e.key === " ") { e.preventDefault(); sortBy(c - 1); }
     });
   });
+  function order() {
+    if (sorted) return sorted;
+    var idx = new Int32Array(n);
+    for (var a = 0; a < n; a++) idx[a] = a;
+    if (state.sort !== 0 || state.dir !== 1) {
+      var key = COLS[state.sort][1], keys = new Float64Array(n), dir = state.dir, v;
+      for (a = 0; a < n; a++) { v = key(a); keys[a] = v === null || v === undefined ? NaN : v; }
+      idx.sort(function (x, y) {
+        var p = keys[x], r = keys[y];
+        if (p !== p) return r !== r ? x - y : 1;  // NaN: absent, last in both directions
+        if (r !== r) return -1;
+        return p === r ? x - y : p < r ? -dir : dir;
+      });
+    }
+    sorted = idx;
+    return idx;
+  }
+  function keep(a, text, cls, st) {
+    if (cls !== "" && String(D.cls[a]) !== cls) return false;
+    if (st === "failed" && D.st[a] !== 1) return false;
+    if (st === "missed" && !(D.st[a] === 0 && missed[a])) return false;
+    if (st === "ok" && !(D.st[a] === 0 && !missed[a])) return false;
+    if (st === "other" && D.st[a] < 2) return false;
+    return text === "" || low[a].indexOf(text) >= 0;
+  }
+  function filter() {
+    var idx = order(), text = q.value.trim().toLowerCase(), cls = clsSel.value, st = stSel.value;
+    var out = new Int32Array(n), m = 0;
+    for (var j = 0; j < n; j++) if (keep(idx[j], text, cls, st)) out[m++] = idx[j];
+    view = out.subarray(0, m);
+  }
+  var AX = D.axes, W = 280, H = 150, L = 44, R = 24, T = 8, B = 28;
+  function decades(r, fallback) {
+    var lo = r[0] === null ? fallback[0] : Math.floor(Math.log10(r[0]) + 1e-9);
+    var hi = r[1] === null ? fallback[1] : Math.ceil(Math.log10(r[1]) - 1e-9);
+    if (hi <= lo) hi = lo + 1;
+    return [lo, hi];
+  }
+  var XD = decades(AX.tri, [0, 6]), YD = decades(AX.err, [-4, 0]);
+  function sx(v) { return L + (Math.log10(v) - XD[0]) / (XD[1] - XD[0]) * (W - L - R); }
+  var ZERO = H - B - 6, YTOP = T, YBOT = H - B - 18;  // errors of zero: a row of their own below the decades
+  function sy(v) { return v > 0 ? YBOT - (Math.log10(v) - YD[0]) / (YD[1] - YD[0]) * (YBOT - YTOP) : ZERO; }
+  function label(e) { return e >= 0 && e <= 6 ? String(Math.pow(10, e)) : e < 0 && e >= -6 ? Math.pow(10, e).toFixed(-e) : "1e" + e; }
+  function plot(a) {
+    var s = '<svg class="chain" viewBox="0 0 ' + W + " " + H + '" width="' + W + '" height="' + H +
+      '" role="img" aria-label="error against triangles"><title>Hausdorff (solid) and mean (dashed) error, % of diagonal, against triangles; the source at error 0</title>';
+    var step = Math.max(1, Math.ceil((XD[1] - XD[0]) / 6)), e;
+    for (e = XD[0]; e <= XD[1]; e += step) {
+      s += '<line class="grid" x1="' + sx(Math.pow(10, e)) + '" x2="' + sx(Math.pow(10, e)) + '" y1="' + YTOP + '" y2="' + ZERO + '"/>' +
+        '<text x="' + sx(Math.pow(10, e)) + '" y="' + (H - B + 12) + '" text-anchor="middle">' + label(e) + "</text>";
+    }
+    step = Math.max(1, Math.ceil((YD[1] - YD[0]) / 5));
+    for (e = YD[0]; e <= YD[1]; e += step) {
+      s += '<line class="grid" x1="' + L + '" x2="' + (W - R) + '" y1="' + sy(Math.pow(10, e)) + '" y2="' + sy(Math.pow(10, e)) + '"/>' +
+        '<text x="' + (L - 4) + '" y="' + (sy(Math.pow(10, e)) + 4) + '" text-anchor="end">' + label(e) + "</text>";
+    }
+    s += '<text x="' + (L - 4) + '" y="' + (ZERO + 4) + '" text-anchor="end">0</text>' +
+      '<text x="' + ((L + W - R) / 2) + '" y="' + (H - 4) + '" text-anchor="middle">triangles</text>';
+    function chain(field, css) {
+      var pts = [];
+      if (D.itri[a] > 0) pts.push([sx(D.itri[a]), ZERO]);
+      for (var k = off[a]; k < off[a + 1]; k++) {
+        if (D.tri[k] > 0 && D[field][k] !== null) pts.push([sx(D.tri[k]), sy(D[field][k])]);
+      }
+      var p = '<polyline class="' + css + '" points="' + pts.map(function (q) { return q[0].toFixed(1) + "," + q[1].toFixed(1); }).join(" ") + '"/>';
+      pts.forEach(function (q) { p += '<circle class="' + css + '" cx="' + q[0].toFixed(1) + '" cy="' + q[1].toFixed(1) + '" r="2.5"/>'; });
+      return p;
+    }
+    return s + chain("mean", "mean") + chain("h", "haus") + "</svg>";
+  }
+  function detail(a) {
+    if (D.err[a] !== undefined) return '<p class="err">' + esc(D.err[a]) + "</p>";
+    if (!D.nl[a]) return '<p class="empty">No LODs.</p>';
+    var s = '<table class="lods"><thead><tr><th>LOD</th><th>target</th><th>target tris</th><th>triangles</th>' +
+      "<th>error bound %</th><th>mean %</th><th>Hausdorff %</th><th>screen coverage</th><th>stop reason</th>" +
+      "<th>budget</th></tr></thead><tbody>";
+    for (var k = off[a]; k < off[a + 1]; k++) {
+      var bud = D.bud[k] === null ? DASH : D.bud[k] ? "met" : '<span class="st-failed">missed</span>';
+      if (D.why[k] >= 0) bud += ": " + esc(D.reasons[D.why[k]]);
+      s += "<tr><td>" + num(D.lv[k], 0) + "</td><td>" + (D.tgt[k] < 0 ? DASH : esc(D.targets[D.tgt[k]])) +
+        '</td><td class="num">' + count(D.ttri[k]) + '</td><td class="num">' + count(D.tri[k]) +
+        '</td><td class="num">' + num(D.eb[k], 4) + '</td><td class="num">' + num(D.mean[k], 4) +
+        '</td><td class="num">' + num(D.h[k], 4) + '</td><td class="num">' + num(D.sc[k], 4) +
+        "</td><td>" + (D.stop[k] < 0 ? DASH : esc(D.stops[D.stop[k]])) + "</td><td>" + bud + "</td></tr>";
+    }
+    return '<div class="detail">' + plot(a) + s + "</tbody></table></div>";
+  }
+  function render() {
+    var pages = Math.max(1, Math.ceil(view.length / PAGE));
+    if (state.page >= pages) state.page = pages - 1;
+    var html = [], end = Math.min(view.length, (state.page + 1) * PAGE);
+    for (var j = state.page * PAGE; j < end; j++) {
+      var a = view[j], open = state.open[a] === true;
+      html.push('<tr data-asset="' + a + '" class="' + (D.st[a] === 1 ? "failed" : missed[a] ? "missed" : "") +
+        '"><td><button class="toggle" aria-expanded="' + open + '" title="LODs">' + (open ? "\u25be" : "\u25b8") + "</button></td>");
+      for (var c = 0; c < COLS.length; c++) {
+        html.push('<td class="' + COLS[c][3] + '"' + (c === 1 ? ' title="' + esc(path(a)) + '"' : "") + ">" + COLS[c][2](a) + "</td>");
+      }
+      html.push("</tr>");
+      if (open) html.push('<tr class="expanded"><td></td><td colspan="' + COLS.length + '">' + detail(a) + "</td></tr>");
+    }
+    body.innerHTML = html.join("");
+    info.textContent = view.length + " of " + n + " assets";
+    pageInfo.textContent = "page " + (state.page + 1) + " of " + pages;
+    Array.prototype.forEach.call(head.cells, function (th, c) {
+      if (c === 0) return;
+      if (c - 1 === state.sort) th.setAttribute("aria-sort", state.dir > 0 ? "ascending" : "descending");
+      else th.removeAttribute("aria-sort");
+    });
+  }
+  function update() { filter(); render(); }
+  body.addEventListener("click", function (e) {
+    var b = e.target.closest("button.toggle");
+    if (!b) return;
+    var a = Number(b.closest("tr").getAttribute("data-asset"));
+    state.open[a] = !state.open[a];
+    render();
+  });
+  q.addEventListener("input", function () { state.page = 0; update(); });
+  clsSel.addEventListener("change", function () { state.page = 0; update(); });
+  stSel.addEventListener("change", function () { state.page = 0; update(); });
+  document.getElementById("prev").addEventListener("click", function () { if (state.page > 0) { state.page--; render(); } });
+  document.getElementById("next").addEventListener("click", function () { state.page++; render(); });
+  update();
 })();
 )js";
-
-// ----- Table cells
 
 void text_cell(std::string& out, const std::optional<std::string>& v, std::string_view css_class = {}) {
   if (!v) {
@@ -466,21 +900,6 @@ void text_cell(std::string& out, const std::optional<std::string>& v, std::strin
   out += "</td>";
 }
 
-template <class Format>
-void number_cell(std::string& out, const std::optional<double>& v, Format format) {
-  if (!v) {
-    out += "<td class=\"num na\">";
-    out += kDash;
-    out += "</td>";
-    return;
-  }
-  out += "<td class=\"num\" data-v=\"";
-  out += shortest(*v);
-  out += "\">";
-  out += format(*v);
-  out += "</td>";
-}
-
 void header_cell(std::string& out, std::string_view label, bool numeric, bool sorted_ascending = false) {
   out += "<th scope=\"col\" data-type=\"";
   out += numeric ? "num" : "text";
@@ -491,26 +910,6 @@ void header_cell(std::string& out, std::string_view label, bool numeric, bool so
   out += "</th>";
 }
 
-// Known statuses get a CSS class; anything else is shown as text but never becomes markup.
-std::string_view status_class(const std::optional<std::string>& status) {
-  if (status == "ok") return "st-ok";
-  if (status == "failed") return "st-failed";
-  if (status == "skipped" || status == "not_started") return "st-skipped";
-  return {};
-}
-
-std::optional<std::string> yes_no(const std::optional<bool>& v) {
-  if (!v) return std::nullopt;
-  return std::string(*v ? "yes" : "no");
-}
-
-std::optional<std::string> target_text(const Lod& lod) {
-  if (!lod.target_kind && !lod.target_value) return std::nullopt;
-  std::string s = lod.target_kind.value_or(std::string(kDash));
-  s += ' ';
-  s += lod.target_value ? compact(*lod.target_value) : std::string(kDash);
-  return s;
-}
 
 // ----- Header
 
@@ -541,6 +940,8 @@ void render_header(std::string& out, const json& report) {
   };
   meta("lodforge", escaped_or_dash(text(report, "lodforge_version")));
   meta("config", escaped_or_dash(text(report, "config_file")));
+  meta("input", escaped_or_dash(text(report, "input_dir")));
+  meta("output", escaped_or_dash(text(report, "output_dir")));
   meta("jobs", count_or_dash(number(report, "jobs")));
   meta("shard", escaped_or_dash(text(report, "shard")));
   out += "</p>\n";
@@ -557,6 +958,8 @@ void render_header(std::string& out, const json& report) {
   if (const std::optional<double> n = number(s, "not_started"); n && *n > 0) figure(out, "not started", count_or_dash(n));
   figure(out, "cache hits", count_or_dash(number(s, "cache_hits")));
   figure(out, "LODs", count_or_dash(number(s, "lods")));
+  const std::optional<double> missed = number(s, "lods_missed");
+  figure(out, "LODs missed budget", count_or_dash(missed), missed && *missed > 0);
   figure(out, "input triangles", count_or_dash(in));
   figure(out, "output triangles", count_or_dash(kept));
   figure(out, "output / input", in && kept && *in > 0 ? fixed(*kept / *in, 4) : std::string(kDash));
@@ -573,7 +976,7 @@ void render_problem_table(std::string& out, const std::vector<const Asset*>& ass
   header_cell(out, "class", false);
   header_cell(out, error_label, false);
   out += "</tr></thead><tbody>\n";
-  for (std::size_t i = 0; i < assets.size(); ++i) {
+  for (std::size_t i = 0; i < assets.size() && i < kProblemRows; ++i) {
     out += "<tr data-rank=\"" + std::to_string(i) + "\">";
     text_cell(out, assets[i]->path, "path");
     text_cell(out, assets[i]->class_name);
@@ -581,6 +984,10 @@ void render_problem_table(std::string& out, const std::vector<const Asset*>& ass
     out += "</tr>\n";
   }
   out += "</tbody></table></div>\n";
+  if (assets.size() > kProblemRows) {
+    out += "<p class=\"meta\">and " + std::to_string(assets.size() - kProblemRows) +
+           " more: the assets table below filters by status.</p>\n";
+  }
 }
 
 void render_failures(std::string& out, const std::vector<Asset>& assets) {
@@ -613,71 +1020,93 @@ void render_failures(std::string& out, const std::vector<Asset>& assets) {
   out += "</section>\n";
 }
 
-// ----- The asset x LOD table
+// ----- Changes since the previous run into the same output
 
-void render_lod_table(std::string& out, const std::vector<Row>& rows) {
-  out += "<section id=\"lods-section\">\n<h2>Assets and LODs, worst first</h2>\n";
-  out +=
-      "<p class=\"meta\">Failed assets first, then by measured Hausdorff distance. Errors are % of the source's "
-      "bounding-box diagonal. Click a column header to sort.</p>\n";
-  out += "<div class=\"scroll\"><table id=\"lods\" class=\"sortable\"><thead><tr>";
-  header_cell(out, "#", true, true);
-  header_cell(out, "asset", false);
-  header_cell(out, "class", false);
-  header_cell(out, "status", false);
-  header_cell(out, "cache hit", false);
-  header_cell(out, "LOD", true);
-  header_cell(out, "target", false);
-  header_cell(out, "target tris", true);
-  header_cell(out, "triangles", true);
-  header_cell(out, "ratio", true);
-  header_cell(out, "error bound %", true);
-  header_cell(out, "mean %", true);
-  header_cell(out, "RMS %", true);
-  header_cell(out, "Hausdorff %", true);
-  header_cell(out, "normal dev \xC2\xB0", true);
-  header_cell(out, "UV flips+spans", true);
-  header_cell(out, "quad fraction", true);
-  header_cell(out, "stop reason", false);
-  header_cell(out, "time s", true);
-  header_cell(out, "budget", false);
-  out += "</tr></thead><tbody>\n";
+constexpr std::size_t kChangeLines = 100;  // per kind; report.json and `lodforge diff-reports` list them all
 
-  const Lod kNoLod;  // every field absent: the LOD columns of an asset without LODs
-  const auto as_count = [](double v) { return count(v); };
-  const auto as_ratio = [](double v) { return fixed(v, 4); };
-  const auto as_percent = [](double v) { return percent(v); };
-  const auto as_degrees = [](double v) { return fixed(v, 2); };
-  const auto as_seconds = [](double v) { return fixed(v, 3); };
-  for (std::size_t i = 0; i < rows.size(); ++i) {
-    const Asset& a = *rows[i].asset;
-    const Lod& l = rows[i].lod ? *rows[i].lod : kNoLod;
-    out += a.failed() ? "<tr class=\"failed\"" : "<tr";
-    out += " data-rank=\"" + std::to_string(i) + "\">";
-    number_cell(out, static_cast<double>(i + 1), as_count);
-    text_cell(out, a.path, "path");
-    text_cell(out, a.class_name);
-    text_cell(out, a.status, status_class(a.status));
-    text_cell(out, yes_no(a.cache_hit));
-    number_cell(out, l.level ? std::optional<double>(static_cast<double>(*l.level)) : std::nullopt, as_count);
-    text_cell(out, target_text(l));
-    number_cell(out, l.target_triangles, as_count);
-    number_cell(out, l.triangles, as_count);
-    number_cell(out, l.ratio, as_ratio);
-    number_cell(out, l.error_bound_rel, as_percent);
-    number_cell(out, l.mean_rel, as_percent);
-    number_cell(out, l.rms_rel, as_percent);
-    number_cell(out, l.hausdorff_rel, as_percent);
-    number_cell(out, l.normal_deviation_mean_deg, as_degrees);
-    number_cell(out, l.uv_problems, as_count);
-    number_cell(out, l.quad_fraction, as_ratio);
-    text_cell(out, l.stop_reason);
-    number_cell(out, rows[i].lod ? l.seconds : a.seconds, as_seconds);  // no LODs: the asset's own time
-    text_cell(out, l.budget, l.missed() ? "st-failed" : "");
-    out += "</tr>\n";
-  }
-  out += "</tbody></table></div>\n</section>\n";
+void render_changes(std::string& out, const json& report) {
+  const json& changes = member(report, "changes");
+  if (!changes.is_object()) return;
+  const auto list = [&](const char* key) -> const json& { return member(changes, key); };
+  const auto size = [&](const char* key) { return list(key).is_array() ? list(key).size() : std::size_t{0}; };
+  out += "<section id=\"changes\">\n<h2>Changes since the previous run</h2>\n<p class=\"meta\">";
+  out += "previous run <b>" + count_or_dash(number(changes, "previous_assets")) + "</b> assets; ";
+  out += "<b>" + std::to_string(size("added")) + "</b> added, <b>" + std::to_string(size("removed")) +
+         "</b> removed, <b>" + std::to_string(size("rebuilt")) + "</b> rebuilt, <b>" +
+         std::to_string(size("status_changed")) + "</b> changed status, <b>" + std::to_string(size("lods_moved")) +
+         "</b> LODs moved by more than 5% (triangles or Hausdorff distance)</p>\n";
+  const auto section = [&](const char* key, const char* title, auto line) {
+    const json& l = list(key);
+    if (!l.is_array() || l.empty()) return;
+    out += "<details><summary>" + std::string(title) + " (" + std::to_string(l.size()) + ")</summary><ul>\n";
+    std::size_t shown = 0;
+    for (const json& e : l) {
+      if (shown++ == kChangeLines) {
+        out += "<li class=\"muted\">and " + std::to_string(l.size() - kChangeLines) + " more (report.json)</li>\n";
+        break;
+      }
+      out += "<li>";
+      line(e);
+      out += "</li>\n";
+    }
+    out += "</ul></details>\n";
+  };
+  const auto path = [&](const json& e) { append_escaped(out, e.is_string() ? e.get<std::string>() : std::string(kDash)); };
+  section("added", "Added", path);
+  section("removed", "Removed", path);
+  section("rebuilt", "Rebuilt", path);
+  section("status_changed", "Status changed", [&](const json& e) {
+    append_escaped(out, text(e, "path").value_or(std::string(kDash)));
+    out += ": ";
+    append_escaped(out, text(e, "from").value_or(std::string(kDash)));
+    out += " \xE2\x86\x92 ";
+    append_escaped(out, text(e, "to").value_or(std::string(kDash)));
+  });
+  section("lods_moved", "LODs moved", [&](const json& e) {
+    append_escaped(out, text(e, "path").value_or(std::string(kDash)));
+    const auto pair = [&](const char* key, int decimals, double scale, const char* label) {
+      const json& p = member(e, key);
+      if (!p.is_array() || p.size() != 2) return;
+      const auto v = [&](const json& x) {
+        return x.is_number() ? fixed(x.get<double>() * scale, decimals) : std::string(kDash);
+      };
+      out += std::string(" ") + label + " " + v(p[0]) + " \xE2\x86\x92 " + v(p[1]);
+    };
+    if (const std::optional<std::int64_t> level = integer(e, "level")) out += " LOD" + std::to_string(*level) + ":";
+    if (member(e, "lod_count").is_array()) {
+      pair("lod_count", 0, 1, "LODs");
+    } else {
+      pair("triangles", 0, 1, "triangles");
+      pair("hausdorff_rel", 4, 100, "Hausdorff %");
+    }
+  });
+  out += "</section>\n";
 }
+
+// ----- The assets table (filled by the script)
+
+void render_assets(std::string& out, const std::vector<Asset>& assets, const std::vector<const Asset*>& order) {
+  out += "<section id=\"assets-section\">\n<h2>Assets, worst first</h2>\n";
+  out +=
+      "<p class=\"meta\">One row per asset: failed first, then assets with a LOD that missed its budget, then by the "
+      "largest measured Hausdorff distance over their LODs (% of the source's bounding-box diagonal). Click a "
+      "column header to sort, \xE2\x96\xB8 to show an asset's LODs and its error against triangles.</p>\n";
+  out += "<div class=\"controls\"><input id=\"q\" type=\"search\" placeholder=\"search paths\" aria-label=\"search "
+         "paths\"> <select id=\"cls\" aria-label=\"class\"><option value=\"\">all classes</option>"
+         "<option value=\"-1\">(no class)</option></select> <select id=\"st\" aria-label=\"status\">"
+         "<option value=\"\">all statuses</option><option value=\"failed\">failed</option>"
+         "<option value=\"missed\">budget missed</option><option value=\"ok\">ok (budgets met)</option>"
+         "<option value=\"other\">skipped or not started</option></select> <span id=\"count\"></span> "
+         "<button id=\"prev\">\xE2\x97\x80</button> <span id=\"page\"></span> <button id=\"next\">\xE2\x96\xB6</button>"
+         "</div>\n";
+  out += "<noscript><p class=\"empty\">The table needs JavaScript; report.json holds the same data.</p></noscript>\n";
+  out += "<div class=\"scroll\"><table id=\"assets\"><thead><tr></tr></thead><tbody></tbody></table></div>\n";
+  (void)assets;
+  render_data(out, order);
+  out += "</section>\n";
+}
+
+// ----- Worst assets
 
 // ----- Plots
 
@@ -694,26 +1123,6 @@ struct Axis {
     return px_lo + t * (px_hi - px_lo);
   }
 };
-
-// Decades around [min, max] (both > 0), at most ~6 labelled, so a chain spanning 1e-6..1 stays readable.
-Axis log_axis(double min, double max) {
-  Axis a;
-  a.log = true;
-  int lo_exp = static_cast<int>(std::floor(std::log10(min)));
-  int hi_exp = static_cast<int>(std::ceil(std::log10(max)));
-  if (hi_exp <= lo_exp) hi_exp = lo_exp + 1;
-  const int step = std::max(1, (hi_exp - lo_exp + 5) / 6);
-  hi_exp = lo_exp + step * ((hi_exp - lo_exp + step - 1) / step);
-  a.lo = std::pow(10.0, lo_exp);
-  a.hi = std::pow(10.0, hi_exp);
-  for (int e = lo_exp; e <= hi_exp; e += step) a.ticks.push_back(std::pow(10.0, e));
-  if (step == 1 && hi_exp - lo_exp <= 3) {
-    for (int e = lo_exp; e < hi_exp; ++e) {
-      for (int m = 2; m <= 9; ++m) a.minor_ticks.push_back(m * std::pow(10.0, e));
-    }
-  }
-  return a;
-}
 
 // Linear from 0 to a "nice" bound above max (steps of 1, 2 or 5 x 10^k, about five of them).
 Axis linear_axis_from_zero(double max) {
@@ -748,36 +1157,10 @@ std::string px(double v) {
   return fixed(v, 1);
 }
 
-// Categorical colours for LOD levels (Tableau 10: distinct hues of similar weight on white); LOD1 gets the first.
-constexpr std::array<std::string_view, 10> kLevelColours = {"#4e79a7", "#f28e2b", "#e15759", "#76b7b2", "#59a14f",
-                                                            "#edc948", "#b07aa1", "#ff9da7", "#9c755f", "#bab0ac"};
-constexpr std::string_view kNoLevelColour = "#555555";
-
-std::string_view level_colour(const std::optional<std::int64_t>& level) {
-  if (!level) return kNoLevelColour;
-  const std::int64_t n = static_cast<std::int64_t>(kLevelColours.size());
-  return kLevelColours[static_cast<std::size_t>((((*level - 1) % n) + n) % n)];
-}
-
-std::string level_label(const std::optional<std::int64_t>& level) {
-  return level ? "LOD" + std::to_string(*level) : std::string("LOD ") + std::string(kDash);
-}
-
-struct Point {
-  double ratio = 0;
-  double mean_percent = 0;
-  std::optional<std::int64_t> level;
-  const Asset* asset = nullptr;
-};
-
-// Values a chart can place: the axes' arithmetic (decades, x100 for percent, nice steps) stays finite.
 bool plottable(double v) {
   return v >= 1e-280 && v <= 1e280;
 }
 
-// Plot geometry, in SVG user units (the viewBox; the page scales it).
-constexpr double kPlotWidth = 620, kPlotHeight = 360;
-constexpr double kLeft = 64, kRight = 96, kTop = 16, kBottom = 48;  // kRight leaves room for the legend
 
 void axis_lines(std::string& out, const Axis& axis, bool horizontal, double x0, double y0, double x1, double y1) {
   const auto line = [&](double v, std::string_view css) {
@@ -811,78 +1194,6 @@ void svg_open(std::string& out, double width, double height, const std::string& 
 }
 
 // One class: measured mean error against achieved ratio, a dot per LOD. Returns nothing; LODs that a log axis
-// cannot place (mean error 0, or no measurement) are counted in the caption instead.
-void render_class_scatter(std::string& out, const std::string& name, const std::vector<const Asset*>& assets) {
-  std::vector<Point> points;
-  std::size_t lods = 0;
-  for (const Asset* a : assets) {
-    for (const Lod& l : a->lods) {
-      ++lods;
-      if (l.ratio && l.mean_rel && plottable(*l.ratio) && plottable(*l.mean_rel)) {
-        points.push_back({*l.ratio, *l.mean_rel * 100.0, l.level, a});
-      }
-    }
-  }
-  const std::string name_html = escaped(name);
-  out += "<figure>\n<figcaption>" + name_html + " <small>" + std::to_string(assets.size()) +
-         (assets.size() == 1 ? " asset, " : " assets, ") + std::to_string(lods) + (lods == 1 ? " LOD" : " LODs");
-  if (points.size() < lods) {
-    out += ", " + std::to_string(lods - points.size()) + " not plotted (error or ratio missing, zero or out of range)";
-  }
-  out += "</small></figcaption>\n";
-  svg_open(out, kPlotWidth, kPlotHeight, "mean error vs triangle ratio: " + name_html);
-  const double x0 = kLeft, x1 = kPlotWidth - kRight, y0 = kTop, y1 = kPlotHeight - kBottom;
-  if (points.empty()) {
-    out += "<rect class=\"frame\" x=\"" + px(x0) + "\" y=\"" + px(y0) + "\" width=\"" + px(x1 - x0) + "\" height=\"" +
-           px(y1 - y0) + "\"/><text class=\"muted\" x=\"" + px((x0 + x1) / 2) + "\" y=\"" + px((y0 + y1) / 2) +
-           "\" text-anchor=\"middle\">no measured LODs</text>\n</svg>\n</figure>\n";
-    return;
-  }
-
-  double min_x = points[0].ratio, max_x = min_x, min_y = points[0].mean_percent, max_y = min_y;
-  for (const Point& p : points) {
-    min_x = std::min(min_x, p.ratio), max_x = std::max(max_x, p.ratio);
-    min_y = std::min(min_y, p.mean_percent), max_y = std::max(max_y, p.mean_percent);
-  }
-  // Ratios of one class often sit within a decade (0.5, 0.25, 0.1): linear reads better there; a chain down to
-  // 1% needs a log axis to separate its low LODs.
-  const Axis x_axis = max_x / min_x >= 10 ? log_axis(min_x, max_x) : linear_axis_from_zero(max_x);
-  const Axis y_axis = log_axis(min_y, max_y);
-
-  axis_lines(out, x_axis, true, x0, y0, x1, y1);
-  axis_lines(out, y_axis, false, x0, y0, x1, y1);
-  out += "<rect class=\"frame\" x=\"" + px(x0) + "\" y=\"" + px(y0) + "\" width=\"" + px(x1 - x0) + "\" height=\"" +
-         px(y1 - y0) + "\"/>\n";
-  out += "<text x=\"" + px((x0 + x1) / 2) + "\" y=\"" + px(kPlotHeight - 10) + "\" text-anchor=\"middle\">" +
-         "achieved triangle ratio" + (x_axis.log ? " (log)" : "") + "</text>\n";
-  out += "<text x=\"14\" y=\"" + px((y0 + y1) / 2) + "\" text-anchor=\"middle\" transform=\"rotate(-90 14 " +
-         px((y0 + y1) / 2) + ")\">mean error, % of diagonal (log)</text>\n";
-
-  // Lower levels first, so the coarse LODs (fewer, and the ones a reader looks for) are drawn on top.
-  std::vector<const Point*> order;
-  order.reserve(points.size());
-  for (const Point& p : points) order.push_back(&p);
-  std::stable_sort(order.begin(), order.end(), [](const Point* a, const Point* b) { return a->level < b->level; });
-  for (const Point* p : order) {
-    out += "<circle cx=\"" + px(x_axis.to_pixel(p->ratio, x0, x1)) + "\" cy=\"" +
-           px(y_axis.to_pixel(p->mean_percent, y1, y0)) + "\" r=\"3.5\" fill=\"" + std::string(level_colour(p->level)) +
-           "\" fill-opacity=\"0.8\" stroke=\"#ffffff\" stroke-width=\"0.5\"><title>";
-    append_escaped(out, p->asset->path_or_empty());
-    out += ' ' + level_label(p->level) + ": ratio " + fixed(p->ratio, 4) + ", mean " + fixed(p->mean_percent, 4) +
-           "%</title></circle>\n";
-  }
-
-  std::set<std::optional<std::int64_t>> levels;
-  for (const Point& p : points) levels.insert(p.level);
-  double y = y0 + 8;
-  for (const auto& level : levels) {
-    out += "<circle cx=\"" + px(x1 + 16) + "\" cy=\"" + px(y) + "\" r=\"4\" fill=\"" +
-           std::string(level_colour(level)) + "\"/><text x=\"" + px(x1 + 24) + "\" y=\"" + px(y + 4) + "\">" +
-           level_label(level) + "</text>\n";
-    y += 16;
-  }
-  out += "</svg>\n</figure>\n";
-}
 
 // The ten assets with the largest Hausdorff distance over their LODs.
 void render_worst_assets(std::string& out, const std::vector<Asset>& assets) {
@@ -934,30 +1245,6 @@ void render_worst_assets(std::string& out, const std::vector<Asset>& assets) {
   out += "</svg>\n</figure>\n";
 }
 
-void render_plots(std::string& out, const std::vector<Asset>& assets) {
-  // Classes by name; assets no class matched form their own group, last, and only when they have LODs to plot.
-  std::map<std::string, std::vector<const Asset*>> classes;
-  std::vector<const Asset*> unclassified;
-  bool unclassified_lods = false;
-  for (const Asset& a : assets) {
-    if (a.class_name) {
-      classes[*a.class_name].push_back(&a);
-    } else {
-      unclassified.push_back(&a);
-      unclassified_lods = unclassified_lods || !a.lods.empty();
-    }
-  }
-  out += "<section id=\"plots\">\n<h2>Error vs triangle ratio</h2>\n";
-  out +=
-      "<p class=\"meta\">Measured mean distance to the source, % of its bounding-box diagonal, per LOD. Hover a "
-      "dot for the asset.</p>\n<div class=\"plots\">\n";
-  for (const auto& [name, members] : classes) render_class_scatter(out, name, members);
-  if (unclassified_lods) render_class_scatter(out, "(no class)", unclassified);
-  out += "</div>\n<div class=\"plots\">\n";
-  render_worst_assets(out, assets);
-  out += "</div>\n</section>\n";
-}
-
 void render_effective_config(std::string& out, const json& report) {
   const json* config = field(report, "effective_config");
   if (config == nullptr) return;
@@ -968,14 +1255,16 @@ void render_effective_config(std::string& out, const json& report) {
   out += "</pre>\n</details>\n</section>\n";
 }
 
+
+
 }  // namespace
 
 std::string render_report_html(const nlohmann::json& report) {
   const std::vector<Asset> assets = read_assets(report);
-  const std::vector<Row> rows = order_rows(assets);
+  const std::vector<const Asset*> order = order_assets(assets);
 
   std::string out;
-  out.reserve(16384 + rows.size() * 1200);
+  out.reserve(32768 + assets.size() * 400);
   out += "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n";
   // Self-contained by construction, and enforced: the browser refuses any load the page did not inline.
   out +=
@@ -991,18 +1280,21 @@ std::string render_report_html(const nlohmann::json& report) {
   out += "</style>\n</head>\n<body>\n";
 
   render_header(out, report);
+  render_changes(out, report);
   if (assets.empty()) {
     out += "<p class=\"empty\" id=\"no-assets\">This report has no assets.</p>\n";
   } else {
     render_failures(out, assets);
-    render_lod_table(out, rows);
-    render_plots(out, assets);
+    render_assets(out, assets, order);
+    out += "<section id=\"plots\">\n<h2>Worst assets</h2>\n<div class=\"plots\">\n";
+    render_worst_assets(out, assets);
+    out += "</div>\n</section>\n";
+    out += "<script>";
+    out += kScript;
+    out += "</script>\n";
   }
   render_effective_config(out, report);
-
-  out += "<script>";
-  out += kScript;
-  out += "</script>\n</body>\n</html>\n";
+  out += "</body>\n</html>\n";
   return out;
 }
 

@@ -84,6 +84,23 @@ double finite(double x) {
 }
 
 // Resident memory of this process now (VmRSS), 0 when /proc is not there.
+std::uint64_t asset_bytes(const fs::path& file);
+
+// Bytes of the regular files under `dir` (an asset's written outputs, report.json "output_bytes").
+std::uint64_t tree_bytes(const fs::path& dir) {
+  std::uint64_t bytes = 0;
+  std::error_code ec;
+  for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::recursive_directory_iterator();
+       it.increment(ec)) {
+    std::error_code size_ec;
+    if (it->is_regular_file(size_ec)) {
+      const std::uintmax_t n = it->file_size(size_ec);
+      if (!size_ec) bytes += n;
+    }
+  }
+  return bytes;
+}
+
 std::uint64_t resident_bytes() {
   std::ifstream statm("/proc/self/statm");
   std::uint64_t size = 0, resident = 0;
@@ -568,7 +585,7 @@ class Pipeline {
     job.diagonal = io::world_bounds(job.asset).diagonal();
     job.record["input"] = {
         {"triangles", job.triangles}, {"vertices", job.vertices}, {"diagonal", finite(job.diagonal)},
-        {"repeated_faces", job.repeated_faces}};
+        {"repeated_faces", job.repeated_faces}, {"bytes", asset_bytes(job.file)}};
   }
 
   void lods(Job& job) {
@@ -732,6 +749,7 @@ class Pipeline {
     try {
       write_outputs(job, staging);
       job.check_deadline();  // last moment to give up: once published, the asset is done
+      job.record["output_bytes"] = tree_bytes(staging);
       job.record["outputs"] = cache_.publish(staging, fs::path(job.path).parent_path());
     } catch (...) {
       std::error_code ec;
@@ -1366,6 +1384,8 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
   report["effective_config"] = effective_config_json(config);
   report["jobs"] = jobs;
   report["shard"] = options.shard ? Json(shard_name(*options.shard)) : Json(nullptr);
+  report["input_dir"] = options.input_dir.generic_string();
+  report["output_dir"] = options.output_dir.generic_string();
   report["summary"] = report_summary(assets, result.seconds);
   if (!result.stale_outputs.empty()) {
     report["stale_outputs"] = result.stale_outputs;
@@ -1374,6 +1394,19 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
   report["assets"] = std::move(assets);
   if (options.write_report) {
     result.report_path = options.output_dir / (report_stem + ".json");
+    // Nightly runs into one output are compared: the report that is about to be replaced is the baseline. One
+    // that is unreadable or not a report is no baseline (a first run has none either).
+    std::error_code exists_ec;
+    if (fs::is_regular_file(result.report_path, exists_ec)) {
+      try {
+        const Json previous = Json::parse(io::read_file(result.report_path), nullptr, false);
+        if (!previous.is_discarded() && check_report(previous).empty()) {
+          report["changes"] = diff_reports(previous, report);
+        }
+      } catch (const io::IoError&) {
+        // unreadable: no baseline
+      }
+    }
     write_report(report, result.report_path, options.output_dir / (report_stem + ".html"));
     // Entries of assets this run does not list stay while their files do: not after --prune, and not in a
     // shard, which cannot tell a removed asset from another shard's.

@@ -20,6 +20,7 @@ void register_render_wire(CLI::App& app);
 void register_run(CLI::App& app);
 void register_validate_config(CLI::App& app);
 void register_merge_reports(CLI::App& app);
+void register_diff_reports(CLI::App& app);
 void register_bench(CLI::App& app);
 
 }  // namespace lodforge::cli

@@ -123,6 +123,7 @@ int main(int argc, char** argv) {
   lodforge::cli::register_run(app);
   lodforge::cli::register_validate_config(app);
   lodforge::cli::register_merge_reports(app);
+  lodforge::cli::register_diff_reports(app);
   lodforge::cli::register_bench(app);
 
   if (const auto problem = unknown_word(app, argc, argv)) {

@@ -469,6 +469,41 @@ void register_merge_reports(CLI::App& app) {
   });
 }
 
+void register_diff_reports(CLI::App& app) {
+  auto files = std::make_shared<std::vector<std::string>>();
+  CLI::App* cmd = app.add_subcommand(
+      "diff-reports",
+      "Print what changed from report A to report B (two report.json files of runs into the same output): assets "
+      "added, removed and rebuilt, status changes, and LODs whose triangle count or measured Hausdorff distance "
+      "moved by more than 5%. The same comparison `lodforge run` puts in report.json and report.html "
+      "(\"changes\") when it replaces a report. Exit 0 after printing, 2 when a file is unreadable or not a "
+      "lodforge report.");
+  cmd->add_option("reports", *files, "A.json (the earlier run) and B.json (the later one)")->required()->expected(2);
+  cmd->callback([files] {
+    std::vector<Json> reports;
+    for (const std::string& f : *files) {
+      try {
+        const Json j = Json::parse(io::read_file(f), nullptr, false);
+        if (j.is_discarded()) {
+          std::fprintf(stderr, "error: %s: not valid JSON\n", f.c_str());
+          return set_exit_code(2);
+        }
+        if (const std::vector<std::string> problems = batch::check_report(j); !problems.empty()) {
+          std::fprintf(stderr, "error: %s: not a lodforge report: %s%s\n", f.c_str(), problems.front().c_str(),
+                       problems.size() > 1 ? (" (and " + std::to_string(problems.size() - 1) + " more)").c_str() : "");
+          return set_exit_code(2);
+        }
+        reports.push_back(j);
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "error: %s\n", e.what());
+        return set_exit_code(2);
+      }
+    }
+    std::printf("changes from %s to %s:\n%s", (*files)[0].c_str(), (*files)[1].c_str(),
+                batch::changes_text(batch::diff_reports(reports[0], reports[1])).c_str());
+  });
+}
+
 void register_bench(CLI::App& app) {
   auto a = std::make_shared<RunArgs>();
   auto max_jobs = std::make_shared<unsigned>(0);

@@ -89,12 +89,14 @@ Json comparable_report(const fs::path& file) {
   Json j = Json::parse(lodforge::io::read_file(file));
   strip_seconds(j);
   j["jobs"] = 0;
+  j.erase("input_dir");  // the folders a run names differ between runs of the same work, like the job count
+  j.erase("output_dir");
   return j;
 }
 
 TEST(BatchCli, HelpListsTheBatchCommands) {
   const CliResult r = run_cli("--help");
-  for (const char* s : {"run", "validate-config", "merge-reports", "bench"}) {
+  for (const char* s : {"run", "validate-config", "merge-reports", "diff-reports", "bench"}) {
     EXPECT_NE(r.output.find(s), std::string::npos) << s;
   }
 }
@@ -386,6 +388,35 @@ TEST(BatchCli, MergeReportsNamesAFileThatIsNoReport) {
   const CliResult r = run_cli("merge-reports " + q(dir / "m.json") + " " + q(config));
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.output.find("error: " + config.string() + ": not a lodforge report: "), std::string::npos) << r.output;
+}
+
+TEST(BatchCli, DiffReportsPrintsWhatChangedBetweenTwoRuns) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_diff_reports");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 8);
+  const fs::path config = testlib::write_config(dir);
+  ASSERT_EQ(run_cli(run_args(config, lib.root, dir / "out")).exit_code, 0);
+  fs::copy_file(dir / "out/report.json", dir / "a.json");
+  lodforge::io::save_asset(testlib::asset_of({testlib::make_terrain(20, 7)}, lodforge::io::Format::obj),
+                           dir / "lib/props/new_one.obj");
+  ASSERT_EQ(run_cli(run_args(config, lib.root, dir / "out")).exit_code, 0);
+  const CliResult r = run_cli("diff-reports " + q(dir / "a.json") + " " + q(dir / "out/report.json"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("1 added, 0 removed, 0 rebuilt, 0 changed status"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("added:\n  props/new_one.obj\n"), std::string::npos) << r.output;
+  // The run itself put the same comparison in report.json and report.html.
+  const Json report = Json::parse(lodforge::io::read_file(dir / "out/report.json"));
+  EXPECT_EQ(report["changes"]["added"], Json::array({"props/new_one.obj"}));
+  EXPECT_NE(lodforge::io::read_file(dir / "out/report.html").find("Changes since the previous run"), std::string::npos);
+
+  const CliResult bad = run_cli("diff-reports " + q(dir / "a.json") + " " + q(config));
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.output.find("error: " + config.string() + ": not a lodforge report: "), std::string::npos) << bad.output;
+  const CliResult missing = run_cli("diff-reports " + q(dir / "a.json") + " " + q(dir / "nope.json"));
+  EXPECT_EQ(missing.exit_code, 2);
+  EXPECT_NE(missing.output.find("nope.json"), std::string::npos) << missing.output;
+  const CliResult help = run_cli("diff-reports --help");
+  EXPECT_EQ(help.exit_code, 0);
+  EXPECT_NE(help.output.find("moved by more than 5%"), std::string::npos) << help.output;
 }
 
 TEST(BatchCli, DryRunPrintsClassTargetsAndRebuildsAndWritesNothing) {

@@ -12,6 +12,10 @@
 //                "hausdorff_rel", "normal_deviation_mean_deg", "attributes": {name: float}, "quad_fraction",
 //                "irregular_vertices", "stop_reason", "seconds", "screen_coverage", "shows_previous"}]}]}
 //
+// Also per asset "input.bytes" (the source's mesh data on disk) and "output_bytes" (everything written for it,
+// cache hits and records of earlier versions may lack it); at the top "input_dir" and "output_dir" (the folders
+// of the run; merged reports lack them) and "changes" (diff_reports() against the report.json the run replaced in
+// the same output folder; absent on a first run).
 // "input.repeated_faces": faces that repeat an earlier face of their mesh (core repeated_faces()); simplify()
 // drops them before anything else (reports of earlier versions lack it).
 // Per LOD: "target" is what the config asked ({"kind": "ratio" | "triangles" | "max_error" | "screen_size",
@@ -53,6 +57,21 @@ nlohmann::json without_timings(nlohmann::json report);
 // (seconds = the slowest shard), "shard" null. Throws std::invalid_argument when the reports are malformed, come
 // from different configs or lodforge versions, or list an asset twice.
 nlohmann::json merge_reports(const std::vector<nlohmann::json>& reports);
+
+// What changed from `previous` to `current`, two reports of runs into the same output (report.json "changes"):
+//   {"previous_assets": int, "added": [path], "removed": [path], "rebuilt": [path],
+//    "status_changed": [{"path", "from", "to"}],
+//    "lods_moved": [{"path", "level", "triangles": [before, after], "hausdorff_rel": [before, after],
+//                    "moved": ["triangles" | "hausdorff_rel" | "lod_count"]}]}
+// "rebuilt": in both, simplified again this time (not a cache hit) and ok; "lods_moved": LODs of assets in both
+// whose triangle count or measured Hausdorff distance moved by more than 5% of the previous value (from zero:
+// any change), and assets whose LOD count changed (level null). Lists are in path, then level, order. Reads
+// both documents defensively: missing or mistyped fields count as absent, never throw.
+nlohmann::json diff_reports(const nlohmann::json& previous, const nlohmann::json& current);
+
+// The same as human text, one line per change, led by a line of counts; at most `max_lines` listed per kind
+// (0: all).
+std::string changes_text(const nlohmann::json& changes, std::size_t max_lines = 0);
 
 // Writes report.json (indented) and the HTML page rendered from it, each atomically. Throws io::IoError.
 void write_report(const nlohmann::json& report, const std::filesystem::path& json_path,

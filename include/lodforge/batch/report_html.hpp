@@ -1,19 +1,20 @@
-// The batch run's human-readable report: OUT_DIR/report.html, rendered from the same document as report.json
-// (issue 5, "Report").
+// The batch run's human-readable report: OUT_DIR/report.html, rendered from the same document as report.json.
 //
 //   const nlohmann::json report = ...;  // the batch runner's report.json document
 //   write_file(out_dir / "report.html", render_report_html(report));
 //
-// The page is self-contained: inline CSS, a small inline script for click-to-sort tables, and plots as inline
-// SVG drawn here, so it opens from a file share or a CI artifact with no network. A Content-Security-Policy
-// meta tag forbids every external load, so a stray reference would show as blocked rather than phone home.
-// Sections, top to bottom:
-//   - header: lodforge version, config file, jobs, shard and the summary figures;
-//   - failures: path and error of every failed asset;
-//   - one table row per asset x LOD, worst first: failed assets on top, then by measured Hausdorff distance
-//     (relative to the source's bounding-box diagonal) descending; every column header sorts on click;
-//   - per class, a scatter of measured mean error (% of diagonal, log scale) against achieved triangle ratio,
-//     coloured by LOD level, and a bar chart of the ten assets with the largest Hausdorff distance;
+// The page is self-contained: inline CSS and script, no network (a Content-Security-Policy meta tag forbids every
+// external load, so a stray reference would show as blocked rather than phone home). It is sized for libraries
+// of 100 000 assets: the table is not markup but compact columnar JSON in a <script type="application/json">
+// block (about 250 bytes per asset), drawn by the page 50 rows at a time. Sections, top to bottom:
+//   - header: lodforge version, config file, input and output folders, jobs, shard and the summary figures;
+//   - changes since the previous run (report.json "changes"), when present;
+//   - failures: path and error of failed assets (the first 200; the table filters by status for all);
+//   - the assets table: one row per asset, failed first, then assets with a LOD that missed its budget, then by
+//     the largest measured Hausdorff distance; search, class and status filters; every column sorts; a row
+//     expands to its LODs and a plot of Hausdorff and mean error against triangles, the chain from the source
+//     connected, on log axes shared by every asset (zero errors on a row of their own);
+//   - the ten assets with the largest Hausdorff distance, one bar each;
 //   - the effective config, folded.
 //
 // Tolerance: the document is read, never trusted. Missing fields, nulls, wrong types and non-finite numbers

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <limits>
@@ -108,43 +109,37 @@ std::string_view between(std::string_view s, std::string_view open, std::string_
   return s.substr(a, b == std::string_view::npos ? std::string_view::npos : b - a);
 }
 
-struct Cell {
-  std::string text;                  // content with tags stripped
-  std::optional<std::string> value;  // data-v
-};
-
-// The body rows of the table with id `id`, as cells.
-std::vector<std::vector<Cell>> table_rows(std::string_view html, std::string_view id) {
-  const std::string_view body =
-      between(between(html, "<table id=\"" + std::string(id) + "\"", "</table>"), "<tbody>", "</tbody>");
-  std::vector<std::vector<Cell>> rows;
-  for (std::size_t tr = body.find("<tr"); tr != std::string_view::npos; tr = body.find("<tr", tr + 1)) {
-    const std::string_view row = body.substr(tr, body.find("</tr>", tr) - tr);
-    std::vector<Cell> cells;
-    for (std::size_t td = row.find("<td"); td != std::string_view::npos; td = row.find("<td", td + 1)) {
-      const std::size_t open_end = row.find('>', td);
-      const std::string_view tag = row.substr(td, open_end - td);
-      Cell cell;
-      if (const std::size_t v = tag.find("data-v=\""); v != std::string_view::npos) {
-        cell.value = std::string(tag.substr(v + 8, tag.find('"', v + 8) - (v + 8)));
-      }
-      const std::string_view content = row.substr(open_end + 1, row.find("</td>", open_end) - open_end - 1);
-      bool in_tag = false;
-      for (const char c : content) {
-        if (c == '<') in_tag = true;
-        if (!in_tag) cell.text += c;
-        if (c == '>') in_tag = false;
-      }
-      cells.push_back(std::move(cell));
-    }
-    rows.push_back(std::move(cells));
-  }
-  return rows;
+// The page's data block (the table's content), parsed.
+json page_data(std::string_view html) {
+  const std::string_view open = "<script type=\"application/json\" id=\"report-data\">";
+  const std::size_t a = html.find(open);
+  EXPECT_NE(a, std::string_view::npos);
+  if (a == std::string_view::npos) return json();
+  const std::size_t b = html.find("</script>", a);
+  return json::parse(html.substr(a + open.size(), b - a - open.size()));
 }
 
-// Column indices of the asset x LOD table.
-constexpr std::size_t kRank = 0, kPath = 1, kStatus = 3, kLevel = 5, kTarget = 6, kTriangles = 8, kMean = 11,
-                      kHausdorff = 13, kUvProblems = 15, kQuadFraction = 16, kStop = 17;
+// The data's assets, worst first, as full paths.
+std::vector<std::string> data_paths(const json& d) {
+  std::vector<std::string> out;
+  for (std::size_t i = 0; i < d["dir"].size(); ++i) {
+    const int dir = d["dir"][i].get<int>();
+    out.push_back(dir < 0 ? std::string(kDash) : d["dirs"][dir].get<std::string>() + d["name"][i].get<std::string>());
+  }
+  return out;
+}
+
+// Index of asset `path`'s first LOD in the data's LOD columns.
+std::size_t first_lod(const json& d, const std::string& path) {
+  const std::vector<std::string> paths = data_paths(d);
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < paths.size(); ++i) {
+    if (paths[i] == path) return k;
+    k += d["nl"][i].get<std::size_t>();
+  }
+  ADD_FAILURE() << "no asset " << path;
+  return 0;
+}
 
 TEST(ReportHtml, IsOneHtml5Page) {
   const std::string html = render_report_html(sample_report());
@@ -159,17 +154,23 @@ TEST(ReportHtml, EscapesEveryDocumentString) {
   EXPECT_NE(html.find("parse error: &lt;script&gt;alert(1)&lt;/script&gt; &amp; &quot;quoted&quot; &#39;single&#39;"),
             std::string::npos);
   EXPECT_EQ(html.find("<script>alert"), std::string::npos);
-  EXPECT_EQ(count_of(html, "<script"), 1U);  // the page's own sorting script only
-  EXPECT_NE(html.find("rocks/pebble &amp; &lt;b&gt;.ply"), std::string::npos);
+  EXPECT_EQ(count_of(html, "<script"), 2U);  // the data block and the page's own script
+  EXPECT_EQ(count_of(html, "</script"), 2U);
+  EXPECT_NE(html.find("rocks/pebble &amp; &lt;b&gt;.ply"), std::string::npos);  // the worst-assets chart
   EXPECT_EQ(html.find("<b>.ply"), std::string::npos);
+  // In the data block the same strings are JSON with every "<", ">" and "&" escaped; they parse back intact.
+  const json d = page_data(html);
+  const std::vector<std::string> paths = data_paths(d);
+  EXPECT_NE(std::find(paths.begin(), paths.end(), "rocks/pebble & <b>.ply"), paths.end());
+  EXPECT_EQ(d["err"]["0"], std::string(kHostileError));  // the failed asset, first
 }
 
 TEST(ReportHtml, ListsFailuresBeforeTheTable) {
   const std::string html = render_report_html(sample_report());
-  const std::size_t failures = html.find("id=\"failures\"");
+  const std::size_t failures = html.find("<section id=\"failures\">");
   ASSERT_NE(failures, std::string::npos);
-  EXPECT_LT(failures, html.find("<table id=\"lods\""));
-  const std::string_view section = between(html, "id=\"failures\"", "</section>");
+  EXPECT_LT(failures, html.find("<table id=\"assets\""));
+  const std::string_view section = between(html, "<section id=\"failures\">", "</section>");
   EXPECT_NE(section.find("Failures (1)"), std::string_view::npos);
   EXPECT_NE(section.find("rocks/broken.obj"), std::string_view::npos);
   EXPECT_NE(section.find("&lt;script&gt;"), std::string_view::npos);
@@ -191,81 +192,88 @@ TEST(ReportHtml, ShowsHeaderAndSummary) {
   EXPECT_NE(header.find("3.50"), std::string_view::npos);
 }
 
-TEST(ReportHtml, HasOneScatterPerClassPlusWorstAssets) {
-  const std::string html = render_report_html(sample_report());
-  EXPECT_EQ(count_of(html, "<svg"), 4U);  // props, rocks, trees (the unclassified asset has no LODs) + worst
-  for (const char* cls : {"props", "rocks", "trees"}) {
-    EXPECT_NE(html.find("aria-label=\"mean error vs triangle ratio: " + std::string(cls) + "\""), std::string::npos);
+TEST(ReportHtml, PlotsShareOneLogAxisPairThatHoldsZeroErrors) {
+  json report = sample_report();
+  report["assets"][0]["lods"][0]["hausdorff_rel"] = 0.0;  // an exact LOD: no place on a log axis
+  const std::string html = render_report_html(report);
+  const json d = page_data(html);
+  // One pair of axes for every asset's plot: the smallest positive and the largest triangle count and error.
+  EXPECT_EQ(d["axes"]["tri"], json::array({20, 1000}));         // trees/oak LOD3 .. the sources
+  EXPECT_EQ(d["axes"]["err"][1].get<double>(), 9.5);            // props/table LOD3, in %
+  EXPECT_GT(d["axes"]["err"][0].get<double>(), 0.0);            // zero is drawn on its own row, not an axis end
+  EXPECT_EQ(d["h"][first_lod(d, "props/chair.obj")], 0);
+  EXPECT_NE(html.find("triangles</text>"), std::string::npos);   // the script's plot labels
+  EXPECT_EQ(count_of(html, "<svg viewBox"), 1U);  // the worst-assets chart; the script draws the rest on expand
+}
+
+TEST(ReportHtml, HeaderNamesConfigInputAndOutput) {
+  json report = sample_report();
+  report["input_dir"] = "/data/library";
+  report["output_dir"] = "/data/lods & <more>";
+  report["summary"]["lods_missed"] = 2;
+  const std::string html = render_report_html(report);
+  const std::string_view header = between(html, "<header>", "</header>");
+  EXPECT_NE(header.find("config <b>configs/default.json</b>"), std::string_view::npos);
+  EXPECT_NE(header.find("input <b>/data/library</b>"), std::string_view::npos);
+  EXPECT_NE(header.find("output <b>/data/lods &amp; &lt;more&gt;</b>"), std::string_view::npos);
+  EXPECT_NE(header.find("LODs missed budget"), std::string_view::npos);
+}
+
+TEST(ReportHtml, TableHasOneRowPerAssetWithItsLods) {
+  const json d = page_data(render_report_html(sample_report()));
+  EXPECT_EQ(d["st"].size(), 8U);  // 8 assets
+  std::size_t lods = 0;
+  for (const json& n : d["nl"]) lods += n.get<std::size_t>();
+  EXPECT_EQ(lods, 15U);
+  for (const char* column : {"lv", "tgt", "ttri", "tri", "eb", "mean", "h", "sc", "bud", "why", "stop"}) {
+    EXPECT_EQ(d[column].size(), 15U) << column;
   }
-  EXPECT_NE(html.find("aria-label=\"worst assets by Hausdorff distance\""), std::string::npos);
-  // One dot per measured LOD (15) plus one legend dot per LOD level shown in each class (3 + 2 + 3).
-  EXPECT_EQ(count_of(between(html, "id=\"plots\"", "</section>"), "<circle"), 15U + 8U);
-  EXPECT_NE(html.find("mean error, % of diagonal (log)"), std::string::npos);
-  EXPECT_NE(html.find(">LOD3</text>"), std::string::npos);
-}
-
-TEST(ReportHtml, ScatterHasAxesTicksAndLabels) {
-  const std::string html = render_report_html(sample_report());
-  const std::string_view trees = between(html, "aria-label=\"mean error vs triangle ratio: trees\"", "</svg>");
-  // trees' ratios span 0.02..0.5, so x is log; mean errors 0.05%..3% give decades 0.01..10.
-  EXPECT_NE(trees.find("achieved triangle ratio (log)"), std::string_view::npos);
-  for (const char* tick : {">0.01<", ">0.1<", ">1<", ">10<"}) EXPECT_NE(trees.find(tick), std::string_view::npos);
-  const std::string_view props = between(html, "aria-label=\"mean error vs triangle ratio: props\"", "</svg>");
-  EXPECT_NE(props.find("achieved triangle ratio</text>"), std::string_view::npos);  // 0.1..0.5: linear
-  EXPECT_NE(props.find(">0.5<"), std::string_view::npos);
-}
-
-TEST(ReportHtml, TableHasOneRowPerAssetLod) {
-  const std::string html = render_report_html(sample_report());
-  const auto rows = table_rows(html, "lods");
-  EXPECT_EQ(rows.size(), 15U + 2U);  // 15 LODs, plus one row each for the failed and the skipped asset
-  for (const auto& row : rows) ASSERT_EQ(row.size(), 20U);
-  std::size_t chair_rows = 0;
-  for (const auto& row : rows) chair_rows += row[kPath].text == "props/chair.obj";
-  EXPECT_EQ(chair_rows, 3U);
-}
-
-TEST(ReportHtml, RowsAreWorstFirst) {
-  const std::string html = render_report_html(sample_report());
-  const auto rows = table_rows(html, "lods");
-  ASSERT_EQ(rows.size(), 17U);
-  EXPECT_EQ(rows[0][kPath].text, "rocks/broken.obj");
-  EXPECT_EQ(rows[0][kStatus].text, "failed");
-  EXPECT_EQ(rows[1][kPath].text, "props/table.obj");  // its LOD3 has the largest Hausdorff distance, 9.5%
-  EXPECT_EQ(rows[1][kHausdorff].text, "9.5000");
-  double previous = std::numeric_limits<double>::infinity();
-  for (std::size_t i = 1; i + 1 < rows.size(); ++i) {
-    ASSERT_TRUE(rows[i][kHausdorff].value) << i;
-    const double h = std::stod(*rows[i][kHausdorff].value);
-    EXPECT_LE(h, previous) << i;
-    previous = h;
+  for (const char* column : {"dir", "name", "cls", "pr", "st", "hit", "itri", "ib", "ob", "nl"}) {
+    EXPECT_EQ(d[column].size(), 8U) << column;
   }
-  EXPECT_EQ(rows.back()[kPath].text, "misc/readme.obj");  // unmeasured last
-  for (std::size_t i = 0; i < rows.size(); ++i) EXPECT_EQ(rows[i][kRank].text, std::to_string(i + 1));
+}
+
+TEST(ReportHtml, RowsAreFailedThenBudgetMissedThenWorstHausdorff) {
+  json report = sample_report();
+  // trees/pine's LOD2 missed its budget: it moves above every asset that met them, whatever its error.
+  report["assets"][5]["lods"][1]["budget"] = {{"status", "missed"}, {"reasons", {"target not reached"}}};
+  report["assets"][4]["lods"][0]["budget"] = {{"status", "met"}, {"reasons", json::array()}};
+  const json d = page_data(render_report_html(report));
+  const std::vector<std::string> paths = data_paths(d);
+  const std::vector<std::string> expected = {"rocks/broken.obj",     "trees/pine.glb",    "props/table.obj",
+                                             "trees/oak.glb",        "rocks/boulder.ply", "rocks/pebble & <b>.ply",
+                                             "props/chair.obj",      "misc/readme.obj"};
+  EXPECT_EQ(paths, expected);
+  EXPECT_EQ(d["st"][0], 1);  // failed
+  const std::size_t pine = first_lod(d, "trees/pine.glb");
+  EXPECT_EQ(d["bud"][pine + 1], 0);  // missed
+  EXPECT_EQ(d["reasons"][d["why"][pine + 1].get<int>()], "target not reached");
+  EXPECT_EQ(d["bud"][first_lod(d, "trees/oak.glb")], 1);   // met
+  EXPECT_TRUE(d["bud"][first_lod(d, "props/table.obj")].is_null());  // no budget in the record
 }
 
 TEST(ReportHtml, TableShowsTargetsAndPercentages) {
-  const std::string html = render_report_html(sample_report());
-  const auto rows = table_rows(html, "lods");
-  ASSERT_GE(rows.size(), 2U);
-  const auto& worst = rows[1];  // props/table.obj LOD3
-  EXPECT_EQ(worst[kLevel].text, "3");
-  EXPECT_EQ(worst[kTarget].text, "ratio 0.1");
-  EXPECT_EQ(worst[kTriangles].text, "100");
-  EXPECT_EQ(worst[kMean].text, "0.7000");
-  EXPECT_EQ(worst[kUvProblems].text, "4");      // uv_flipped 3 + uv_spanning 1
-  EXPECT_EQ(worst[kQuadFraction].text, "0.7500");
-  EXPECT_EQ(worst[kStop].text, "target_reached");
+  const json d = page_data(render_report_html(sample_report()));
+  const std::size_t worst = first_lod(d, "props/table.obj") + 2;  // its LOD3: Hausdorff 9.5%
+  EXPECT_EQ(d["lv"][worst], 3);
+  EXPECT_EQ(d["targets"][d["tgt"][worst].get<int>()], "ratio 0.1");
+  EXPECT_EQ(d["tri"][worst], 100);
+  EXPECT_EQ(d["mean"][worst].get<double>(), 0.7);
+  EXPECT_EQ(d["h"][worst].get<double>(), 9.5);
+  EXPECT_EQ(d["stops"][d["stop"][worst].get<int>()], "target_reached");
+  EXPECT_EQ(d["itri"][1], 1000);
 }
 
 TEST(ReportHtml, EveryHeaderSortsAndShowsADirection) {
   const std::string html = render_report_html(sample_report());
-  const std::string_view head = between(between(html, "<table id=\"lods\"", "</table>"), "<thead>", "</thead>");
-  EXPECT_EQ(count_of(head, "<th "), 20U);
-  EXPECT_EQ(count_of(head, "data-type=\"num\"") + count_of(head, "data-type=\"text\""), 20U);
-  EXPECT_EQ(count_of(head, "aria-sort=\"ascending\""), 1U);  // the worst-first rank
   EXPECT_NE(html.find("th[aria-sort=\"descending\"]::after"), std::string::npos);
   EXPECT_NE(html.find("addEventListener(\"click\""), std::string::npos);
+  for (const char* label : {"\"screen coverage\"", "\"budget\"", "\"input size\"", "\"output size\""}) {
+    EXPECT_NE(html.find(label), std::string::npos) << label;  // columns the script draws
+  }
+  for (const char* control : {"id=\"q\"", "id=\"cls\"", "id=\"st\"", "value=\"missed\"", "id=\"next\""}) {
+    EXPECT_NE(html.find(control), std::string::npos) << control;
+  }
 }
 
 TEST(ReportHtml, WorstAssetsChartKeepsTenLargest) {
@@ -312,25 +320,19 @@ TEST(ReportHtml, AbsentValuesRenderAsDash) {
                                          {{"path", 5}, {"lods", "none"}}})}};
   std::string html;
   ASSERT_NO_THROW(html = render_report_html(report));
-  const auto rows = table_rows(html, "lods");
-  ASSERT_EQ(rows.size(), 3U);  // the bare LOD, the failure, the asset with no usable fields; 3 is dropped
-  const auto& failed = rows[0];
-  EXPECT_EQ(failed[kPath].text, kDash);
-  EXPECT_EQ(failed[4].text, kDash);  // cache hit of the wrong type
-  const auto& bare = rows[1][kPath].text == "a.obj" ? rows[1] : rows[2];
-  EXPECT_EQ(bare[kPath].text, "a.obj");
-  EXPECT_EQ(bare[kLevel].text, "1");
-  for (const std::size_t col : {kTarget, kTriangles, kMean, kHausdorff, kStop}) {
-    EXPECT_EQ(bare[col].text, kDash) << col;
-    EXPECT_FALSE(bare[col].value) << col;
-  }
-  const std::string_view page = between(html, "<body>", "<script>");  // the script itself says "null"
+  const json d = page_data(html);
+  ASSERT_EQ(d["st"].size(), 3U);  // the bare LOD, the failure, the asset with no usable fields; 3 is dropped
+  EXPECT_EQ(d["dir"][0], -1);     // the failure has no path
+  EXPECT_TRUE(d["hit"][0].is_null());  // cache hit of the wrong type
+  const std::size_t bare = first_lod(d, "a.obj");
+  EXPECT_EQ(d["lv"][bare], 1);
+  for (const char* column : {"tri", "mean", "h", "ttri"}) EXPECT_TRUE(d[column][bare].is_null()) << column;
+  for (const char* column : {"tgt", "stop"}) EXPECT_EQ(d[column][bare], -1) << column;
+  const std::string_view page = between(html, "<body>", "<script");
   for (const char* leak : {"nan", "inf", "null", "surprise"}) EXPECT_EQ(page.find(leak), std::string::npos) << leak;
   const std::string_view header = between(html, "<header>", "</header>");
   EXPECT_NE(header.find("lodforge <b>" + std::string(kDash) + "</b>"), std::string_view::npos);
   EXPECT_NE(header.find("jobs <b>" + std::string(kDash) + "</b>"), std::string_view::npos);
-  // The class plot of "c" has nothing to plot but still exists; the bare asset has no class and no plottable LOD.
-  EXPECT_NE(html.find("no measured LODs"), std::string::npos);
   EXPECT_NE(html.find("no asset has a measured Hausdorff distance"), std::string::npos);
 }
 
@@ -339,10 +341,45 @@ TEST(ReportHtml, ExtremeValuesStayOutOfThePlots) {
   report["assets"].push_back(asset("huge.obj", "props", {lod(1, 1e-300, 1e300, 1e307), lod(2, 0.5, 1e-320, 0.0)}));
   std::string html;
   ASSERT_NO_THROW(html = render_report_html(report));
-  const std::string_view page = between(html, "<body>", "<script>");
-  for (const char* leak : {"nan", "inf"}) EXPECT_EQ(page.find(leak), std::string_view::npos) << leak;
-  EXPECT_NE(html.find("2 not plotted"), std::string::npos);  // ratio 1e-300, mean error 1e-320
-  EXPECT_EQ(count_of(html, "<svg"), 4U);
+  const std::string_view page = between(html, "<body>", "<script");
+  for (const char* leak : {"nan", "inf"}) EXPECT_EQ(page.find(leak), std::string::npos) << leak;
+  const json d = page_data(html);  // still valid JSON, no NaN or Infinity in it
+  EXPECT_TRUE(d["h"][first_lod(d, "huge.obj")].is_null());
+  EXPECT_LE(d["axes"]["err"][1].get<double>(), 1e282);  // the axes leave out what no log axis can hold
+  EXPECT_EQ(count_of(html, "<svg viewBox"), 1U);
+}
+
+TEST(ReportHtml, WorstAssetsAreDistinctAssets) {
+  json report = sample_report();
+  // Every LOD of these assets has the same, largest error: each asset is still one bar.
+  for (int i = 0; i < 4; ++i) {
+    report["assets"].push_back(asset("same/a" + std::to_string(i) + ".obj", "props",
+                                     {lod(1, 0.5, 0.01, 0.5), lod(2, 0.25, 0.01, 0.5), lod(3, 0.1, 0.01, 0.5)}));
+  }
+  const std::string html = render_report_html(report);
+  const std::string_view chart = between(html, "aria-label=\"worst assets by Hausdorff distance\"", "</svg>");
+  EXPECT_EQ(count_of(chart, "<g><title>"), 10U);  // these 4 and the sample's 6 measured assets
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(count_of(chart, "<title>same/a" + std::to_string(i) + ".obj"), 1U) << i;
+}
+
+TEST(ReportHtml, ShowsChangesSinceThePreviousRun) {
+  json report = sample_report();
+  report["changes"] = {{"previous_assets", 7},
+                       {"added", {"trees/pine.glb"}},
+                       {"removed", {"old/<gone>.obj"}},
+                       {"rebuilt", {"props/chair.obj"}},
+                       {"status_changed", json::array()},
+                       {"lods_moved", {{{"path", "props/chair.obj"},
+                                        {"level", 2},
+                                        {"triangles", {300, 250}},
+                                        {"hausdorff_rel", {0.012, 0.012}},
+                                        {"moved", {"triangles"}}}}}};
+  const std::string html = render_report_html(report);
+  const std::string_view section = between(html, "<section id=\"changes\">", "</section>");
+  EXPECT_NE(section.find("<b>1</b> added, <b>1</b> removed, <b>1</b> rebuilt"), std::string_view::npos);
+  EXPECT_NE(section.find("old/&lt;gone&gt;.obj"), std::string_view::npos);
+  EXPECT_NE(section.find("props/chair.obj LOD2: triangles 300 \xE2\x86\x92 250"), std::string_view::npos);
+  EXPECT_EQ(render_report_html(sample_report()).find("id=\"changes\""), std::string::npos);  // no previous run
 }
 
 TEST(ReportHtml, ReplacesBytesHtmlCannotCarry) {

@@ -121,5 +121,37 @@ TEST(Report, MergeRefusesMismatchedOrOverlappingReports) {
   EXPECT_THROW(merge_reports({broken}), std::invalid_argument);
 }
 
+TEST(Report, DiffListsAddedRemovedRebuiltAndLodsThatMovedMoreThanFivePercent) {
+  Json before = report({asset("a"), asset("b"), asset("c"), asset("d")});
+  Json after = report({asset("b"), asset("c"), asset("d", "failed"), asset("e")});
+  for (Json& a : before["assets"]) a["cache_hit"] = true;
+  for (Json& a : after["assets"]) a["cache_hit"] = a["path"] != "c";
+  after["assets"][0]["lods"][0]["triangles"] = 52;         // b: +4%, not a move
+  after["assets"][0]["lods"][0]["hausdorff_rel"] = 0.0022;  // b: +10%
+  after["assets"][1]["lods"][0]["triangles"] = 40;          // c: -20%, and rebuilt
+  const Json d = diff_reports(before, after);
+  EXPECT_EQ(d["previous_assets"], 4);
+  EXPECT_EQ(d["added"], Json::array({"e"}));
+  EXPECT_EQ(d["removed"], Json::array({"a"}));
+  EXPECT_EQ(d["rebuilt"], Json::array({"c"}));
+  ASSERT_EQ(d["status_changed"].size(), 1u);
+  EXPECT_EQ(d["status_changed"][0], Json({{"path", "d"}, {"from", "ok"}, {"to", "failed"}}));
+  ASSERT_EQ(d["lods_moved"].size(), 2u);
+  EXPECT_EQ(d["lods_moved"][0]["path"], "b");
+  EXPECT_EQ(d["lods_moved"][0]["moved"], Json::array({"hausdorff_rel"}));
+  EXPECT_EQ(d["lods_moved"][1]["path"], "c");
+  EXPECT_EQ(d["lods_moved"][1]["triangles"], Json::array({50, 40}));
+  const std::string text = changes_text(d);
+  EXPECT_EQ(text.rfind("1 added, 1 removed, 1 rebuilt, 1 changed status, 2 LODs moved by more than 5%\n", 0), 0u)
+      << text;
+  EXPECT_NE(text.find("  c LOD1: triangles 50 -> 40 Hausdorff 0.2000% -> 0.2000%\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("  d: ok -> failed\n"), std::string::npos) << text;
+  // The same report twice: nothing changed; junk never throws.
+  const Json same = diff_reports(after, after);
+  for (const char* kind : {"added", "removed", "status_changed", "lods_moved"}) EXPECT_TRUE(same[kind].empty()) << kind;
+  EXPECT_NO_THROW(diff_reports(Json(5), Json::object({{"assets", {1, "x", Json::object()}}})));
+  EXPECT_NO_THROW(changes_text(Json("junk")));
+}
+
 }  // namespace
 }  // namespace lodforge::batch

@@ -38,9 +38,13 @@ const Json& record_of(const Json& report, const std::string& path) {
   return kNone;
 }
 
-// Reports of two runs of the same work agree on everything but timings and the job count.
+// Reports of two runs of the same work agree on everything but timings, the job count, the folders they ran on
+// and what they say changed since the run before (a run into a fresh folder has no "changes").
 Json comparable(Json report) {
   report["jobs"] = 0;
+  report.erase("input_dir");
+  report.erase("output_dir");
+  report.erase("changes");
   return without_timings(std::move(report));
 }
 
@@ -167,6 +171,19 @@ TEST(BatchRunner, SecondRunIsAllCacheHitsAndTouchingOneFileRedoesOne) {
   EXPECT_EQ(third.cache_hits, lib.files.size() - 1);
   for (const Json& a : third.report["assets"]) EXPECT_EQ(a["cache_hit"], a["path"] != touched) << a["path"];
   EXPECT_EQ(record_of(third.report, touched)["input"]["triangles"], 800);
+  // Each run into the same output compares itself with the report it replaces.
+  EXPECT_FALSE(first.report.contains("changes"));
+  const Json& none = second.report["changes"];
+  EXPECT_EQ(none["previous_assets"], lib.files.size());
+  for (const char* kind : {"added", "removed", "rebuilt", "status_changed", "lods_moved"}) {
+    EXPECT_TRUE(none[kind].empty()) << kind;
+  }
+  const Json& one = third.report["changes"];
+  EXPECT_EQ(one["rebuilt"], Json::array({touched}));
+  EXPECT_TRUE(one["added"].empty());
+  EXPECT_FALSE(one["lods_moved"].empty());  // a different mesh: other triangle counts and errors
+  for (const Json& m : one["lods_moved"]) EXPECT_EQ(m["path"], touched);
+  EXPECT_EQ(Json::parse(io::read_file(dir / "out/report.json"))["changes"], one);
 
   // Touching a file without changing it redoes nothing: the key is the content, not the time stamp.
   fs::last_write_time(lib.root / "props/prop_0.obj", fs::file_time_type::clock::now());
