@@ -10,6 +10,7 @@
 // Environment: LODFORGE_NODE_MODULES (default tools/node/node_modules of this checkout), CHROMIUM (default
 // /usr/bin/chromium).
 import { existsSync } from "node:fs";
+import { createRequire } from "node:module";
 import path from "node:path";
 import { fileURLToPath, pathToFileURL } from "node:url";
 
@@ -22,10 +23,16 @@ function skip(why) {
   process.exit(77);
 }
 
-const entry = path.join(modules, "puppeteer-core", "lib", "esm", "puppeteer", "puppeteer-core.js");
-if (!existsSync(entry)) skip("puppeteer-core not found under " + modules + " (scripts/setup.sh installs it)");
+// Resolved the way node resolves it from that folder, whatever the package's internal layout (it moved in v24).
+let entry;
+try {
+  entry = createRequire(path.join(modules, "noop.js")).resolve("puppeteer-core");
+} catch {
+  skip("puppeteer-core not found under " + modules + " (scripts/setup.sh installs it)");
+}
 if (!existsSync(chromium)) skip("Chromium not found at " + chromium + " (Debian package chromium)");
-const puppeteer = (await import(pathToFileURL(entry).href)).default;
+const imported = await import(pathToFileURL(entry).href);
+const puppeteer = imported.default ?? imported;
 
 const [mode, file, extra] = process.argv.slice(2);
 if (!["check", "bench"].includes(mode) || !file) {
