@@ -1,6 +1,6 @@
 // lodforge_bench_load: load throughput of lodforge::io::load_asset on the largest corpus meshes of each format,
 // against OpenMesh's reader (OpenMesh::IO::read_mesh into a PolyMesh, the peer that lodforge's own readers replaced;
-// see README "Formats"). Google Benchmark: bytes_per_second (file bytes, glTF: .gltf + its buffers) and
+// see docs/formats.md). Google Benchmark: bytes_per_second (file bytes, glTF: .gltf + its buffers) and
 // items_per_second (triangles after fan triangulation, as lodforge counts them; the same number for both readers,
 // so the ratio of items_per_second is the ratio of speeds). A comparison table follows the benchmark output.
 //

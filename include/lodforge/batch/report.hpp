@@ -25,7 +25,7 @@
 // to the source's bounding-box diagonal); "attributes" the attribute metrics eval provides (face-normal
 // deviation, per-stream attribute RMS, UV flips, chart spans and stretch, skinned pose error: runner.cpp
 // attribute_metrics() lists them); "quad_fraction" and "irregular_vertices" the LOD's quad structure (quads /
-// faces, interior vertices of valence != 4: quad::quad_stats); "screen_coverage" the LOD's MSFT_screencoverage entry (README, "Screen coverage");
+// faces, interior vertices of valence != 4: quad::quad_stats); "screen_coverage" the LOD's MSFT_screencoverage entry (docs/batch.md, "Screen coverage");
 // "shows_previous" true where the LOD was not 10% smaller than the level before and shows that level's meshes
 // (no file of its own; reports of earlier versions lack it). lods.json (lods_manifest.hpp) is built from this.
 //

@@ -2,7 +2,7 @@
 // at 50% and 25% of the input triangles the result stays quad-dominant (quad fraction >= 0.85), validate()
 // is clean, and the mean surface distance is within 1.5x of the triangle engine's at the same triangle count.
 // The larger quad meshes (MakeHuman base, sword) are measured by lodforge_bench_quad instead. Not here
-// because it misses the mean-distance target (see the benchmark and README): the small Suzanne (968
+// because it misses the mean-distance target (see the benchmark and docs/quad-lods.md): the small Suzanne (968
 // triangles, open eye components, 32 triangles to start with), 2.8x the triangle engine's mean at 50% and
 // 2.3x at 25%. Its closed loops each take a tenth of the mesh, and the fitted quad surface has no more
 // vertices than the triangle engine's but cannot place them where the curvature is.
