@@ -425,6 +425,26 @@ void register_validate_config(CLI::App& app) {
   });
 }
 
+// A report.json read for merge-reports and diff-reports, or nothing after saying on stderr why it is unusable.
+std::optional<Json> read_report(const std::string& file) {
+  try {
+    Json j = Json::parse(io::read_file(file), nullptr, false);
+    if (j.is_discarded()) {
+      std::fprintf(stderr, "error: %s: not valid JSON\n", file.c_str());
+      return std::nullopt;
+    }
+    if (const std::vector<std::string> problems = batch::check_report(j); !problems.empty()) {
+      std::fprintf(stderr, "error: %s: not a lodforge report: %s%s\n", file.c_str(), problems.front().c_str(),
+                   problems.size() > 1 ? (" (and " + std::to_string(problems.size() - 1) + " more)").c_str() : "");
+      return std::nullopt;
+    }
+    return j;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return std::nullopt;
+  }
+}
+
 void register_merge_reports(CLI::App& app) {
   auto out = std::make_shared<std::string>();
   auto inputs = std::make_shared<std::vector<std::string>>();
@@ -438,17 +458,9 @@ void register_merge_reports(CLI::App& app) {
     std::vector<Json> reports;
     try {
       for (const std::string& f : *inputs) {
-        const Json j = Json::parse(io::read_file(f), nullptr, false);
-        if (j.is_discarded()) {
-          std::fprintf(stderr, "error: %s: not valid JSON\n", f.c_str());
-          return set_exit_code(2);
-        }
-        if (const std::vector<std::string> problems = batch::check_report(j); !problems.empty()) {
-          std::fprintf(stderr, "error: %s: not a lodforge report: %s%s\n", f.c_str(), problems.front().c_str(),
-                       problems.size() > 1 ? (" (and " + std::to_string(problems.size() - 1) + " more)").c_str() : "");
-          return set_exit_code(2);
-        }
-        reports.push_back(j);
+        std::optional<Json> j = read_report(f);
+        if (!j) return set_exit_code(2);
+        reports.push_back(std::move(*j));
       }
       const Json merged = batch::merge_reports(reports);
       fs::path html(*out);
@@ -482,22 +494,9 @@ void register_diff_reports(CLI::App& app) {
   cmd->callback([files] {
     std::vector<Json> reports;
     for (const std::string& f : *files) {
-      try {
-        const Json j = Json::parse(io::read_file(f), nullptr, false);
-        if (j.is_discarded()) {
-          std::fprintf(stderr, "error: %s: not valid JSON\n", f.c_str());
-          return set_exit_code(2);
-        }
-        if (const std::vector<std::string> problems = batch::check_report(j); !problems.empty()) {
-          std::fprintf(stderr, "error: %s: not a lodforge report: %s%s\n", f.c_str(), problems.front().c_str(),
-                       problems.size() > 1 ? (" (and " + std::to_string(problems.size() - 1) + " more)").c_str() : "");
-          return set_exit_code(2);
-        }
-        reports.push_back(j);
-      } catch (const std::exception& e) {
-        std::fprintf(stderr, "error: %s\n", e.what());
-        return set_exit_code(2);
-      }
+      std::optional<Json> j = read_report(f);
+      if (!j) return set_exit_code(2);
+      reports.push_back(std::move(*j));
     }
     std::printf("changes from %s to %s:\n%s", (*files)[0].c_str(), (*files)[1].c_str(),
                 batch::changes_text(batch::diff_reports(reports[0], reports[1])).c_str());
