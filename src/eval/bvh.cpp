@@ -45,7 +45,8 @@ constexpr int kWalkSteps = 8;
 // are large whatever their orientation, keeps axis-aligned boxes only.
 constexpr std::uint32_t kOrientedMaxTriangles = 4096;
 // An oriented box is kept when its surface area is below this fraction of the axis-aligned box's: only then
-// does it prune clearly more, and clean meshes keep their one-box test per child.
+// does it prune clearly more. Clean meshes still keep many (small groups of triangles at an angle), which costs
+// them about a fifth more work per query (docs/performance.md).
 constexpr double kOrientedKeepRatio = 0.5;
 
 // A triangle is a sliver for closest_point_on_triangle when the squared sine of its angle at the first corner is
