@@ -17,6 +17,8 @@
 #include <string>
 #include <vector>
 
+#include "lodforge/batch/config.hpp"
+#include "lodforge/batch/runner.hpp"
 #include "lodforge/core/mesh.hpp"
 #include "lodforge/io/asset.hpp"
 #include "lodforge/io/file.hpp"
@@ -177,6 +179,15 @@ inline nlohmann::json gltf_json(const fs::path& file) {
     bytes = bytes.substr(20, length);
   }
   return nlohmann::json::parse(bytes);
+}
+
+// The config of config_text() parsed, and a run of it from `lib` into `out` with `jobs` jobs.
+inline BatchConfig config(const std::string& gltf_lods = "msft_lod") {
+  return parse_config(nlohmann::json::parse(config_text(gltf_lods)), "test config");
+}
+
+inline RunResult run(const fs::path& lib, const fs::path& out, unsigned jobs, const BatchConfig& cfg = config()) {
+  return run_batch(cfg, {.config_file = "test config", .input_dir = lib, .output_dir = out, .jobs = jobs});
 }
 
 }  // namespace lodforge::batch::testlib

@@ -21,13 +21,8 @@ namespace {
 namespace fs = std::filesystem;
 using Json = nlohmann::json;
 
-BatchConfig config(const std::string& gltf_lods = "msft_lod") {
-  return parse_config(Json::parse(testlib::config_text(gltf_lods)), "test config");
-}
-
-RunResult run(const fs::path& lib, const fs::path& out, unsigned jobs, const BatchConfig& cfg = config()) {
-  return run_batch(cfg, {.config_file = "test config", .input_dir = lib, .output_dir = out, .jobs = jobs});
-}
+using testlib::config;
+using testlib::run;
 
 const Json& record_of(const Json& report, const std::string& path) {
   for (const Json& a : report["assets"]) {
