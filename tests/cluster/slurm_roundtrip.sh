@@ -48,6 +48,7 @@ chmod 755 "$work"  # munged wants its socket's folder searchable by everyone
 mkdir -p "$work/state" "$work/spool" "$work/logs"
 export SLURM_CONF="$work/slurm.conf"
 daemons=()  # pids of the daemons this script started, in start order
+sbatch_pid=""
 
 show_logs() {
   local f
@@ -61,6 +62,7 @@ show_logs() {
 cleanup() {
   local rc=$? pid i
   trap - EXIT INT TERM
+  [ -z "$sbatch_pid" ] || kill -TERM "$sbatch_pid" 2>/dev/null || true
   if [ ${#daemons[@]} -gt 1 ]; then
     scancel --quiet --user="$(id -un)" >/dev/null 2>&1 || true  # a job left by a failure or a time-out
   fi
@@ -203,9 +205,12 @@ exec "$lodforge" run \\
   --shard "\$SLURM_ARRAY_TASK_ID/\$SLURM_ARRAY_TASK_COUNT"
 EOF
 submitted=$SECONDS
-# --wait: exit status = the highest of the tasks'.
+# --wait: exit status = the highest of the tasks'. In the background so that a signal reaches the trap now.
+timeout 240 sbatch --wait --quiet --chdir="$work" --array="0-$((shards - 1))" "$work/lodforge.sbatch" &
+sbatch_pid=$!
 rc=0
-timeout 240 sbatch --wait --quiet --chdir="$work" --array="0-$((shards - 1))" "$work/lodforge.sbatch" || rc=$?
+wait "$sbatch_pid" || rc=$?
+sbatch_pid=""
 [ "$rc" -eq 0 ] || fail "the array job exited $rc (124: still running after 240 s)"
 echo "slurm: array job of $shards shards done in $((SECONDS - submitted)) s"
 shopt -s nullglob
