@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Installs what is missing (Debian packages, the glTF validator and the MSFT_lod client check's packages from
-# npm, Chromium) and builds lodforge.
+# npm, Chromium, Slurm and munge for the cluster test) and builds lodforge.
 # Idempotent: a second run installs nothing and rebuilds only what changed.
 #   BUILD_DIR   build folder (default: build)
 #   BUILD_TYPE  CMake build type (default: Release)
@@ -73,6 +73,11 @@ if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/
     echo "setup: warning: could not install chromium; the browser checks will be skipped"
 fi
 # ---- end of the browser checks ----
+
+# The Slurm round trip (tests/cluster/slurm_roundtrip.sh, docs/cluster.md) starts its own munged, slurmctld and
+# slurmd from these packages, never their system services. Optional: the test skips with a message without them.
+install_packages slurm-wlm munge ||
+  echo "setup: warning: could not install slurm-wlm and munge; the Slurm round trip will be skipped"
 
 JOBS=${JOBS:-$(nproc)}
 read -r -a targets <<< "${TARGETS:-}"
