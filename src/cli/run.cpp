@@ -1,4 +1,4 @@
-// The batch commands: `lodforge run`, `validate-config`, `merge-reports` and `bench` (issue 5).
+// The batch commands: `lodforge run`, `validate-config`, `merge-reports` and `bench`.
 //
 // Exit codes follow main.cpp: 0 all assets done, 1 some assets failed (listed on stderr), 2 usage, config or
 // input-folder errors (nothing processed), 3 internal error; `run` stopped by Ctrl-C exits 130 after the

@@ -1,4 +1,4 @@
-// lodforge_bench_attributes: attribute-aware simplification on the glTF corpus (issue 4).
+// lodforge_bench_attributes: attribute-aware simplification on the glTF corpus.
 //
 // Per asset (../shared/corpus gltf/ and skinned/, plus --extra ones) and ratio (default 50%, 25%, 10%), four runs:
 //   attr   lodforge with its default options (attribute-aware: seams, UV charts, attribute quadrics, skinning;
@@ -12,7 +12,7 @@
 // (normals, UV set 0, colour set 0; attr only), throughput
 // (input triangles per second, best of --reps). Every mesh of an asset is simplified to the ratio; the distance
 // is measured on the asset's meshes taken together.
-// Targets (issue 4), printed as MET / NOT MET:
+// Targets, printed as MET / NOT MET:
 //   zero UV flips and zero chart merges for attr on every asset at every ratio;
 //   geometric mean of attr's mean distance within 1.15x of pos's;
 //   attr throughput (all assets and ratios together) at least 0.6x pos's;
@@ -294,7 +294,7 @@ int main(int argc, char** argv) {
   const double distance_ratio = geomean(pos_mean) > 0 ? geomean(attr_mean) / geomean(pos_mean) : 0.0;
   const double throughput_ratio = (attr_s > 0 && pos_s > 0 && pos_tris > 0) ? (attr_tris / attr_s) / (pos_tris / pos_s) : 0.0;
   auto verdict = [&](bool met) { return runs.empty() ? "N/A" : met ? "MET" : "NOT MET"; };
-  std::printf("\ntargets (issue 4)\n");
+  std::printf("\ntargets\n");
   std::printf("  zero UV flips and chart merges everywhere: %zu flips, %zu spanning triangles  %s\n", flips, spans,
               verdict(flips == 0 && spans == 0));
   std::printf("    (not flips: %zu triangles over zero-area UV strips of the input, no orientation to compare; %zu beside\n"

@@ -1,4 +1,4 @@
-// The batch targets of issue 5 (benchmarks, not tests; they print MET / NOT MET and always exit 0 unless they
+// The batch targets (benchmarks, not tests; they print MET / NOT MET and always exit 0 unless they
 // could not run at all):
 //
 //   1. Throughput: `lodforge run --jobs 2` is >= 1.8x as fast as `--jobs 1` on the generated library (the tests'

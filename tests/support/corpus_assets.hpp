@@ -5,7 +5,7 @@
 namespace lodforge::testing {
 
 // The glTF and skinned assets with attributes (UV seams, normals, tangents, materials, skins, morphs): the
-// attribute-aware simplification tests and benchmark (issue 4) and the glTF validator tests run over these.
+// attribute-aware simplification tests and benchmark and the glTF validator tests run over these.
 inline constexpr const char* kGltfAttributeAssets[] = {
     "gltf/Duck.glb",
     "gltf/CesiumMilkTruck.glb",

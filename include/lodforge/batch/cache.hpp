@@ -1,4 +1,4 @@
-// The incremental-run cache (issue 5, "Incremental"): which assets a re-run can skip.
+// The incremental-run cache: which assets a re-run can skip.
 //
 // Layout under OUT_DIR/.lodforge-cache/ (the manifest is one small JSON file per asset, so that shards writing
 // into one shared OUT_DIR never contend for a file, and a killed run loses at most the entries in flight):

@@ -43,7 +43,7 @@ class ConfigError : public std::runtime_error {
 
 // Options the config already parses and validates but the simplifier does not take yet (later issues add
 // them to SimplifyOptions; moving one there is a one-line change of its table entry in config.cpp). Empty now:
-// attribute_weights, permissive, priority_channel and skin_weight_threshold moved to SimplifyOptions (issue 4).
+// attribute_weights, permissive, priority_channel and skin_weight_threshold moved to SimplifyOptions.
 struct PendingOptions {
   friend bool operator==(const PendingOptions&, const PendingOptions&) = default;
 };

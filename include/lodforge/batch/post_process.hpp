@@ -1,4 +1,4 @@
-// Post-processing of a finished LOD: index and vertex order for the GPU (issue 5, "post-process").
+// Post-processing of a finished LOD: index and vertex order for the GPU.
 //
 //   const Mesh gpu = optimize_for_gpu(lod);  // same triangles, fewer vertex-shader runs and cache misses
 //

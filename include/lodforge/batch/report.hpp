@@ -1,4 +1,4 @@
-// report.json: what a batch run did, one record per asset and LOD (issue 5, "Report"). Shape:
+// report.json: what a batch run did, one record per asset and LOD. Shape:
 //
 //   {"lodforge_version": str, "config_file": str, "effective_config": {...}, "jobs": int, "shard": "K/N" | null,
 //    "summary": {"assets", "succeeded", "failed", "skipped", "cache_hits", "lods", "input_triangles",

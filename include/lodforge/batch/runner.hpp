@@ -1,4 +1,4 @@
-// The batch LOD processor (issue 5, "Pipeline"): every asset of a library through one tbb::flow::graph.
+// The batch LOD processor: every asset of a library through one tbb::flow::graph.
 //
 //   const BatchConfig config = load_config("configs/default.json");
 //   const RunResult r = run_batch(config, {.config_file = "configs/default.json", .input_dir = "library",

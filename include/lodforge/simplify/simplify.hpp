@@ -4,7 +4,7 @@
 //
 // Works on triangles: polygon input is fan-triangulated first. The input is never modified.
 //
-// What the output keeps (geometry, and the attributes of issue 4):
+// What the output keeps (geometry, and the attributes):
 //  - vertices: survivors keep their input id order; a vertex that never moved (locked, or only ever the
 //    target of half-edge collapses) keeps its exact input position, bit for bit;
 //  - wedges: a collapse is only made when the victim's wedges map one-to-one onto the survivor's across the

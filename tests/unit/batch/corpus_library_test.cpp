@@ -1,4 +1,4 @@
-// The corpus as a library with the example configs (issue 5, "Tests"): real meshes from ../shared/corpus laid
+// The corpus as a library with the example configs: real meshes from ../shared/corpus laid
 // out in the folders the classes of configs/examples/*.json match, so that every class of every example config
 // gets real assets -- skinned glTF, glTF with external buffers, multi-primitive scenes, quads and n-gons, open
 // borders, STL/OFF/OBJ -- and each config is run over the whole library. A subset of the corpus (the small and
