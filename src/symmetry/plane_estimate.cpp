@@ -6,6 +6,8 @@
 // fitting with a robust (Geman-McClure) weight, after Simari, Kalogerakis and Singh 2006.
 #include "plane_estimate.hpp"
 
+#include <tbb/parallel_for.h>
+
 #include <Eigen/Dense>
 #include <algorithm>
 #include <array>
@@ -17,8 +19,8 @@ namespace lodforge::symmetry::detail {
 namespace {
 
 constexpr std::size_t kScoreSamples = 4096;   // enough to rank candidates; the walk checks every vertex later
-constexpr std::size_t kRefineSamples = 16384;
-constexpr int kRefineIterations = 12;
+constexpr std::size_t kRefineSamples = 8192;
+constexpr int kRefineIterations = 10;
 constexpr std::size_t kRefinedCandidates = 3;  // only the best few are worth refining
 constexpr std::size_t kVotePlanes = 4;
 constexpr std::size_t kMinVotes = 8;  // fewer agreeing pairs are coincidence
@@ -172,14 +174,28 @@ std::vector<Plane> vote_planes(const MeshGeometry& g) {
   return out;
 }
 
+// The vertex nearest the mirror image of each sample, within `radius` of its edge length.
+std::vector<PointTree::Nearest> mirror_nearest(const MeshGeometry& g, const PointTree& tree,
+                                               const std::vector<std::uint32_t>& samples, const Plane& plane,
+                                               double radius) {
+  std::vector<PointTree::Nearest> out(samples.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, samples.size(), 256), [&](const auto& r) {
+    for (std::size_t i = r.begin(); i != r.end(); ++i) {
+      const std::uint32_t v = samples[i];
+      out[i] = tree.nearest(plane.reflect(g.position[v]), radius * g.edge_length[v]);
+    }
+  });
+  return out;
+}
+
 // Mean over the samples of the distance from a mirrored vertex to the nearest vertex, in units of the
 // vertex's edge length and capped at 1: 0 for an exact mirror, near 1 for a plane that mirrors nothing.
 double score(const MeshGeometry& g, const PointTree& tree, const std::vector<std::uint32_t>& samples,
              const Plane& plane) {
-  double sum = 0;
-  for (std::uint32_t v : samples) {
-    const PointTree::Nearest n = tree.nearest(plane.reflect(g.position[v]));
-    sum += std::min(std::sqrt(n.distance2) / g.edge_length[v], 1.0);
+  const std::vector<PointTree::Nearest> near = mirror_nearest(g, tree, samples, plane, 1.0);
+  double sum = 0;  // in sample order, whatever the thread count
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    sum += near[i].id == kInvalidIndex ? 1.0 : std::sqrt(near[i].distance2) / g.edge_length[samples[i]];
   }
   return samples.empty() ? 1.0 : sum / static_cast<double>(samples.size());
 }
@@ -224,15 +240,15 @@ Plane refine(const MeshGeometry& g, const PointTree& tree, const std::vector<std
   std::vector<WeightedPair> pairs;
   for (int it = 0; it < kRefineIterations; ++it) {
     pairs.clear();
-    for (std::uint32_t v : samples) {
-      const PointTree::Nearest n = tree.nearest(plane.reflect(g.position[v]));
-      const double d = std::sqrt(n.distance2), scale = 0.25 * g.edge_length[v];
-      if (n.id == kInvalidIndex || d > 4 * scale) continue;
-      const double r = d / scale;
-      pairs.push_back({v, n.id, 1.0 / ((1 + r * r) * (1 + r * r))});
+    const std::vector<PointTree::Nearest> near = mirror_nearest(g, tree, samples, plane, 1.0);
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+      if (near[i].id == kInvalidIndex) continue;
+      const double r = std::sqrt(near[i].distance2) / (0.25 * g.edge_length[samples[i]]);
+      pairs.push_back({samples[i], near[i].id, 1.0 / ((1 + r * r) * (1 + r * r))});
     }
     const Plane next = fit_weighted(g, pairs, plane, fixed_normal);
-    const bool settled = length(next.normal - plane.normal) < 1e-12 && std::abs(next.offset - plane.offset) < 1e-12 * diagonal;
+    // Closer than float positions can tell: the walk's refit finishes the job.
+    const bool settled = length(next.normal - plane.normal) < 1e-9 && std::abs(next.offset - plane.offset) < 1e-9 * diagonal;
     plane = next;
     if (settled) break;
   }

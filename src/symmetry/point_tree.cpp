@@ -60,7 +60,7 @@ void PointTree::search(std::uint32_t node, const Vec3d& q, Nearest& best) const 
     for (std::uint32_t i = n.begin; i < n.end; ++i) {
       const Vec3d d = points_[i] - q;
       const double d2 = dot(d, d);
-      if (d2 < best.distance2 || (d2 == best.distance2 && ids_[i] < best.id)) {
+      if (d2 < best.distance2 || (d2 == best.distance2 && best.id != 0xffffffffu && ids_[i] < best.id)) {
         best.second_distance2 = best.distance2;
         best.distance2 = d2;
         best.id = ids_[i];
@@ -78,8 +78,9 @@ void PointTree::search(std::uint32_t node, const Vec3d& q, Nearest& best) const 
   if (delta * delta <= best.second_distance2) search(far_child, q, best);
 }
 
-PointTree::Nearest PointTree::nearest(const Vec3d& q) const {
+PointTree::Nearest PointTree::nearest(const Vec3d& q, double radius) const {
   Nearest best;
+  best.distance2 = best.second_distance2 = radius * radius;
   if (!nodes_.empty()) search(0, q, best);
   return best;
 }

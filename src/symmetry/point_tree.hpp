@@ -19,7 +19,9 @@ class PointTree {
     double distance2 = INFINITY;
     double second_distance2 = INFINITY;  // the next nearest point's squared distance
   };
-  Nearest nearest(const Vec3d& q) const;
+  // Only points closer than `radius` count (the search stays local): farther ones leave `id` none and the
+  // distances at radius squared.
+  Nearest nearest(const Vec3d& q, double radius = INFINITY) const;
   bool empty() const { return points_.empty(); }
 
  private:

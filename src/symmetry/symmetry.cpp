@@ -12,6 +12,8 @@
 #include <numeric>
 #include <optional>
 
+#include <tbb/parallel_for.h>
+
 #include "plane_estimate.hpp"
 #include "point_tree.hpp"
 
@@ -21,10 +23,12 @@ namespace {
 using detail::MeshGeometry;
 using detail::PointTree;
 
-// A seed vertex's mirror must be this much closer (fraction of the tolerance) than for the walk, and the next
-// candidate at least half an edge away: seeds start regions, so they must not be guesses.
+// Seeds start regions, so they must not be guesses: a seed vertex's mirror lies within this fraction of the
+// walk's tolerance, and the next nearest vertex is kSeedMargin times as far and at least kSeedApart edge
+// lengths away. (No more apart than that: Suzanne's eyes sit a fifth of an edge from their sockets.)
 constexpr double kSeedTightening = 0.25;
-constexpr double kSeedSeparation = 0.5;
+constexpr double kSeedMargin = 4.0;
+constexpr double kSeedApart = 0.1;
 
 // Face f's corner i corresponds to face `mirror`'s corner (start + step * i) mod size.
 struct Alignment {
@@ -281,12 +285,18 @@ class Walk {
 std::vector<std::uint32_t> seed_mirrors(const MeshGeometry& g, const PointTree& tree, const Plane& plane,
                                         double tolerance) {
   std::vector<std::uint32_t> out(g.position.size(), kInvalidIndex);
-  for (std::uint32_t v : g.vertices) {
-    const PointTree::Nearest n = tree.nearest(plane.reflect(g.position[v]));
-    const double len = g.edge_length[v];
-    const double near = kSeedTightening * tolerance * len, apart = kSeedSeparation * len;
-    if (n.id != kInvalidIndex && n.distance2 <= near * near && n.second_distance2 > apart * apart) out[v] = n.id;
-  }
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, g.vertices.size(), 256), [&](const auto& r) {
+    for (std::size_t i = r.begin(); i != r.end(); ++i) {
+      const std::uint32_t v = g.vertices[i];
+      const double len = g.edge_length[v];
+      const double near = kSeedTightening * tolerance * len;
+      const double radius = std::max(kSeedMargin * near, kSeedApart * len);
+      const PointTree::Nearest n = tree.nearest(plane.reflect(g.position[v]), radius);
+      if (n.id == kInvalidIndex || n.distance2 > near * near) continue;
+      const double apart = std::max(kSeedMargin * std::sqrt(n.distance2), kSeedApart * len);
+      if (n.second_distance2 >= apart * apart) out[v] = n.id;
+    }
+  });
   // Only pairs that choose each other.
   for (std::uint32_t v : g.vertices) {
     if (out[v] != kInvalidIndex && out[out[v]] != v) out[v] = kInvalidIndex;

@@ -34,7 +34,9 @@ TEST_P(SymmetryCorpus, FindsTheMirror) {
               c.path, s.symmetric_edges, s.edges, s.symmetric_fraction(), s.plane.normal[0], s.plane.normal[1],
               s.plane.normal[2], s.plane.offset, ms);
   EXPECT_GE(s.symmetric_fraction(), c.min_fraction);
-  if (c.axis >= 0 && s.found()) EXPECT_GT(std::abs(s.plane.normal[c.axis]), 0.999);
+  if (c.axis >= 0 && s.found()) {
+    EXPECT_GT(std::abs(s.plane.normal[c.axis]), 0.999);
+  }
   // The maps are involutions.
   for (std::uint32_t e = 0; e < s.edge_mirror.size(); ++e) {
     if (s.edge_mirror[e] != kInvalidIndex) {
