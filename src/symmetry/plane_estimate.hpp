@@ -27,9 +27,9 @@ MeshGeometry analyse_geometry(const Mesh& mesh, const Topology& topo);
 // The plane to grow the correspondence from: the best candidate under `mode` (not none), refined.
 Plane estimate_plane(const Mesh& mesh, const MeshGeometry& g, const PointTree& tree, PlaneMode mode);
 
-// The least-squares plane of mirrored vertex pairs (a, b), a != b: its normal the principal direction of the
-// differences (oriented like `previous`), through the mean of the midpoints. With `fixed_normal` only the
-// offset moves. `previous` when there are no pairs.
+// The least-squares plane of mirrored vertex pairs (a, b): its normal the principal direction of the
+// differences (oriented like `previous`), through the mean of the midpoints; a pair a == b (a vertex on the
+// plane) counts for the offset only. With `fixed_normal` only the offset moves. `previous` without pairs.
 Plane fit_plane(const MeshGeometry& g, std::span<const std::pair<std::uint32_t, std::uint32_t>> pairs,
                 const Plane& previous, bool fixed_normal);
 

@@ -94,9 +94,8 @@ class Walk {
     };
     for (std::uint32_t f = 0; f < mesh_.face_count(); ++f) {
       if (!usable_[f]) continue;
-      const std::uint32_t a = find(vertex(f, 0));
       for (std::uint32_t i = 1; i < mesh_.face_size(f); ++i) {
-        const std::uint32_t b = find(vertex(f, i));
+        const std::uint32_t a = find(vertex(f, 0)), b = find(vertex(f, i));
         if (a != b) parent[std::max(a, b)] = std::min(a, b);
       }
     }

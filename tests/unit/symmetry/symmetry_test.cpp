@@ -1,6 +1,7 @@
 #include "lodforge/symmetry/symmetry.hpp"
 
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <set>
 
@@ -173,6 +174,14 @@ TEST(Symmetry, IsDeterministic) {
   EXPECT_EQ(a.face_mirror, b.face_mirror);
   EXPECT_EQ(a.plane.normal, b.plane.normal);
   EXPECT_EQ(a.plane.offset, b.plane.offset);
+  // One thread gives the same maps as many.
+  {
+    const tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+    const SymmetryMap d = detect_symmetry(mesh);
+    EXPECT_EQ(d.edge_mirror, a.edge_mirror);
+    EXPECT_EQ(d.plane.normal, a.plane.normal);
+    EXPECT_EQ(d.plane.offset, a.plane.offset);
+  }
   // Another numbering of the same mesh finds the same symmetry.
   const SymmetryMap c = detect_symmetry(testing::shuffled(mesh, 5));
   EXPECT_EQ(c.symmetric_edges, a.symmetric_edges);
