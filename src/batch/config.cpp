@@ -319,6 +319,14 @@ constexpr EnumName<AttributePlacement> kPlacementNames[] = {
     {"keep", AttributePlacement::keep},
 };
 
+constexpr EnumName<symmetry::PlaneMode> kSymmetryPlaneNames[] = {
+    {"auto", symmetry::PlaneMode::automatic},
+    {"x", symmetry::PlaneMode::x},
+    {"y", symmetry::PlaneMode::y},
+    {"z", symmetry::PlaneMode::z},
+    {"none", symmetry::PlaneMode::none},
+};
+
 constexpr EnumName<GltfLods> kGltfLodsNames[] = {
     {"msft_lod", GltfLods::msft_lod},
     {"files", GltfLods::files},
@@ -506,6 +514,15 @@ const std::vector<Field<LodOptions>>& option_fields() {
   return fields;
 }
 
+// Options of the whole asset rather than of one LOD: `defaults` and class options only.
+const std::vector<Field<LodOptions>>& asset_option_fields() {
+  using B = FieldsOf<LodOptions>;
+  static const std::vector<Field<LodOptions>> fields = {
+      B::choice("symmetry_plane", &PendingOptions::symmetry_plane, kSymmetryPlaneNames),
+  };
+  return fields;
+}
+
 // Output options: `defaults` only (they shape files, not LODs).
 const std::vector<Field<OutputOptions>>& output_fields() {
   using B = FieldsOf<OutputOptions>;
@@ -543,10 +560,19 @@ constexpr std::string_view kTargetKeys[] = {"ratio", "triangles", "max_error", "
 constexpr std::string_view kErrorKeys[] = {"relative", "absolute"};
 constexpr std::string_view kScreenKeys[] = {"pixels", "screen_height_px", "fov_y_deg", "error_px"};
 
+// Keys of `defaults` and a class's `options`; a LOD takes option_fields() only.
 std::vector<std::string_view> option_keys() {
   std::vector<std::string_view> keys;
   append_keys(keys, option_fields());
+  append_keys(keys, asset_option_fields());
   return keys;
+}
+
+// Class-level options as written back: the LOD options and the asset options.
+Json class_options_json(const LodOptions& o) {
+  Json out = write_fields(option_fields(), o);
+  out.update(write_fields(asset_option_fields(), o));
+  return out;
 }
 
 std::vector<std::string_view> defaults_keys() {
@@ -825,6 +851,7 @@ std::optional<AssetClass> read_class(const Json& v, const std::string& path, con
     if (expect_object(*options, options_path, problems)) {
       check_keys(*options, options_path, option_keys(), problems);
       apply_fields(*options, options_path, option_fields(), cls.options, problems);
+      apply_fields(*options, options_path, asset_option_fields(), cls.options, problems);
     }
   }
   if (const Json* lods = find(v, "lods")) {
@@ -876,6 +903,7 @@ BatchConfig read_document(const Json& doc, Problems& problems) {
     if (expect_object(*defaults, "defaults", problems)) {
       check_keys(*defaults, "defaults", defaults_keys(), problems);
       apply_fields(*defaults, "defaults", option_fields(), config.defaults, problems);
+      apply_fields(*defaults, "defaults", asset_option_fields(), config.defaults, problems);
       apply_fields(*defaults, "defaults", output_fields(), config.output, problems);
       apply_fields(*defaults, "defaults", limit_fields(), config.limits, problems);
       if (const Json* sw = find(*defaults, "lod_switch"); sw && expect_object(*sw, "defaults.lod_switch", problems)) {
@@ -1025,7 +1053,7 @@ Json target_json(const LodTarget& t) {
 }
 
 Json class_json(const AssetClass& cls) {
-  Json out = {{"name", cls.name}, {"options", write_fields(option_fields(), cls.options)}};
+  Json out = {{"name", cls.name}, {"options", class_options_json(cls.options)}};
   if (!cls.description.empty()) out["description"] = cls.description;
   Json match = Json::array();
   for (const Glob& g : cls.match) match.push_back(g.pattern());
@@ -1111,7 +1139,7 @@ BatchConfig load_config(const std::filesystem::path& path) {
 }
 
 nlohmann::json effective_config_json(const BatchConfig& config) {
-  Json defaults = write_fields(option_fields(), config.defaults);
+  Json defaults = class_options_json(config.defaults);
   defaults.update(write_fields(output_fields(), config.output));
   defaults.update(write_fields(limit_fields(), config.limits));
   defaults["lod_switch"] = write_fields(lod_switch_fields(), config.lod_switch);

@@ -46,6 +46,11 @@ constexpr Field kAssetFields[] = {{"path", Kind::string},       {"class", Kind::
                                   {"cache_hit", Kind::boolean}, {"seconds", Kind::number}};
 constexpr Field kInputFields[] = {
     {"triangles", Kind::integer}, {"vertices", Kind::integer}, {"diagonal", Kind::number}};
+// input.symmetry, when present (reports of earlier versions lack it); "plane" is checked apart.
+constexpr Field kSymmetryFields[] = {{"plane_mode", Kind::string},
+                                     {"symmetric_edges", Kind::integer},
+                                     {"edges", Kind::integer},
+                                     {"fraction", Kind::number}};
 constexpr Field kLodFields[] = {{"level", Kind::integer},
                                 {"from", Kind::string},
                                 {"target_triangles", Kind::integer_or_null},
@@ -200,6 +205,15 @@ std::vector<std::string> check_report(const Json& report) {
       out.push_back(where + ".input: missing");
     } else {
       check_fields(a["input"], kInputFields, where + ".input", out);
+      if (a["input"].is_object() && a["input"].contains("symmetry")) {
+        const Json& sym = a["input"]["symmetry"];
+        check_fields(sym, kSymmetryFields, where + ".input.symmetry", out);
+        const bool plane_ok = sym.is_object() && sym.contains("plane") &&
+                              (sym["plane"].is_null() || (sym["plane"].is_array() && sym["plane"].size() == 4 &&
+                                                          std::all_of(sym["plane"].begin(), sym["plane"].end(),
+                                                                      [](const Json& x) { return x.is_number(); })));
+        if (!plane_ok) out.push_back(where + ".input.symmetry.plane: expected 4 numbers or null");
+      }
     }
     if (!a.contains("outputs") || !a["outputs"].is_array() ||
         !std::all_of(a["outputs"].begin(), a["outputs"].end(), [](const Json& o) { return o.is_string(); })) {

@@ -53,6 +53,7 @@
 #include "lodforge/io/lods.hpp"
 #include "lodforge/quad/quad_stats.hpp"
 #include "lodforge/simplify/simplify.hpp"
+#include "lodforge/symmetry/symmetry.hpp"
 
 namespace lodforge::batch {
 namespace {
@@ -539,6 +540,28 @@ io::Asset with_meshes(const io::Asset& base, std::vector<Mesh> meshes) {
   return a;
 }
 
+// report.json input.symmetry: the asset's edges found symmetric over all its meshes, and the plane of the mesh
+// with the most of them (in that mesh's own coordinates), or null where none is.
+Json symmetry_json(const std::vector<Mesh>& meshes, symmetry::PlaneMode mode) {
+  std::size_t symmetric = 0, edges = 0, best = 0;
+  Json plane = nullptr;
+  for (const Mesh& mesh : meshes) {
+    const symmetry::SymmetryMap s = symmetry::detect_symmetry(mesh, {.plane = mode});
+    symmetric += s.symmetric_edges;
+    edges += s.edges;
+    if (s.symmetric_edges > best) {
+      best = s.symmetric_edges;
+      plane = Json::array({finite(s.plane.normal[0]), finite(s.plane.normal[1]), finite(s.plane.normal[2]),
+                           finite(s.plane.offset)});
+    }
+  }
+  return {{"plane_mode", symmetry::plane_mode_name(mode)},
+          {"symmetric_edges", symmetric},
+          {"edges", edges},
+          {"fraction", edges == 0 ? 0.0 : static_cast<double>(symmetric) / static_cast<double>(edges)},
+          {"plane", plane}};
+}
+
 bool is_gltf(io::Format f) {
   return f == io::Format::gltf || f == io::Format::glb;
 }
@@ -585,7 +608,8 @@ class Pipeline {
     job.diagonal = io::world_bounds(job.asset).diagonal();
     job.record["input"] = {
         {"triangles", job.triangles}, {"vertices", job.vertices}, {"diagonal", finite(job.diagonal)},
-        {"repeated_faces", job.repeated_faces}, {"bytes", asset_bytes(job.file)}};
+        {"repeated_faces", job.repeated_faces}, {"bytes", asset_bytes(job.file)},
+        {"symmetry", symmetry_json(job.asset.meshes, job.cls->options.pending.symmetry_plane)}};
   }
 
   void lods(Job& job) {

@@ -19,6 +19,7 @@
 #include "lodforge/io/file.hpp"
 #include "lodforge/quad/quad_stats.hpp"
 #include "lodforge/simplify/simplify.hpp"
+#include "lodforge/symmetry/symmetry.hpp"
 
 namespace lodforge::cli {
 namespace {
@@ -69,7 +70,23 @@ std::string attribute_list(const Mesh& m) {
   return s;
 }
 
-void print_mesh_info(const Mesh& m, std::size_t index) {
+void print_symmetry(const Mesh& m, const Topology& topo, symmetry::PlaneMode mode) {
+  if (mode == symmetry::PlaneMode::none) {
+    std::printf("    symmetry: not looked for (--symmetry-plane none)\n");
+    return;
+  }
+  const symmetry::SymmetryMap s = symmetry::detect_symmetry(m, topo, {.plane = mode});
+  if (!s.found()) {
+    std::printf("    symmetry: none found (plane %s)\n", symmetry::plane_mode_name(mode));
+    return;
+  }
+  const Vec3d& n = s.plane.normal;
+  std::printf("    symmetry: %.4f of edges (%zu of %zu) have a mirror edge; plane normal (%.6g, %.6g, %.6g), "
+              "offset %.6g\n",
+              s.symmetric_fraction(), s.symmetric_edges, s.edges, n[0], n[1], n[2], s.plane.offset);
+}
+
+void print_mesh_info(const Mesh& m, std::size_t index, symmetry::PlaneMode symmetry_plane) {
   const FaceKindCounts k = count_face_kinds(m);
   const Bounds3 b = compute_bounds(m);
   std::printf("  mesh %zu%s%s: %zu vertices, %zu wedges, %zu faces (%zu tri, %zu quad, %zu n-gon), %zu triangles, "
@@ -83,11 +100,13 @@ void print_mesh_info(const Mesh& m, std::size_t index) {
   }
   const ValidationReport r = validate(m);
   if (r.out_of_range_indices == 0) {
-    const TopologySummary s = summarize_topology(m, build_topology(m));
+    const Topology topo = build_topology(m);
+    const TopologySummary s = summarize_topology(m, topo);
     std::printf("    topology: %zu edges, %zu boundary edges in %zu loop(s), %zu non-manifold edges, "
                 "%zu non-manifold vertices, %zu component(s), Euler characteristic %lld, %zu seam vertices\n",
                 s.edges, s.boundary_edges, s.boundary_loops, s.non_manifold_edges, s.non_manifold_vertices,
                 s.components, s.euler_characteristic, seam_vertices(m));
+    print_symmetry(m, topo, symmetry_plane);
   }
   if (k.quads > 0) {
     const quad::QuadStats q = quad::quad_stats(m);
@@ -143,10 +162,17 @@ void set_exit_code(int code) { g_exit_code = std::max(g_exit_code, code); }
 
 void register_info(CLI::App& app) {
   auto inputs = std::make_shared<std::vector<std::string>>();
+  auto symmetry_plane = std::make_shared<std::string>("auto");
   CLI::App* cmd = app.add_subcommand(
       "info", "Load, validate and summarise assets (files or folders, searched recursively).");
   cmd->add_option("inputs", *inputs, "asset files or folders (.gltf .glb .obj .ply .off .stl)")->required();
-  cmd->callback([inputs] {
+  cmd->add_option("--symmetry-plane", *symmetry_plane,
+                  "mirror plane to look for: auto (the best found), x, y or z (normal along that axis, offset "
+                  "found), none (skip); prints the plane and the fraction of edges that mirror each other")
+      ->check(CLI::IsMember({"auto", "x", "y", "z", "none"}))
+      ->capture_default_str();
+  cmd->callback([inputs, symmetry_plane] {
+    const symmetry::PlaneMode plane_mode = *symmetry::parse_plane_mode(*symmetry_plane);
     std::size_t ok = 0, failed = 0, triangles = 0;
     std::vector<std::filesystem::path> files;
     try {
@@ -169,7 +195,7 @@ void register_info(CLI::App& app) {
         std::printf("%s: %s, %zu mesh(es), loaded in %.1f ms\n", path.string().c_str(), io::format_name(a.format),
                     a.meshes.size(), load_ms);
         for (std::size_t i = 0; i < a.meshes.size(); ++i) {
-          print_mesh_info(a.meshes[i], i);
+          print_mesh_info(a.meshes[i], i, plane_mode);
           triangles += a.meshes[i].triangle_count();
         }
         for (const std::string& w : a.warnings) std::printf("  warning: %s\n", w.c_str());

@@ -131,6 +131,23 @@ TEST(Cli, InfoOnMissingFileNamesItAndExitsTwo) {
   EXPECT_NE(r.output.find("/nonexistent/dir/thing.obj: no such file"), std::string::npos) << r.output;
 }
 
+// info prints the mirror symmetry of each mesh; --symmetry-plane picks the plane or skips the detection.
+TEST(Cli, InfoPrintsTheSymmetry) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_info_symmetry");
+  write_text(dir / "cube.obj",
+             "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n"
+             "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n");
+  const CliRun r = run_cli("info " + (dir / "cube.obj").string());
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("symmetry: 1.0000 of edges (12 of 12) have a mirror edge; plane normal"), std::string::npos)
+      << r.output;
+  const CliRun x = run_cli("info --symmetry-plane x " + (dir / "cube.obj").string());
+  EXPECT_NE(x.output.find("plane normal (1, 0, 0), offset -0.5"), std::string::npos) << x.output;
+  const CliRun none = run_cli("info --symmetry-plane none " + (dir / "cube.obj").string());
+  EXPECT_NE(none.output.find("symmetry: not looked for"), std::string::npos) << none.output;
+  EXPECT_NE(run_cli("info --symmetry-plane w " + (dir / "cube.obj").string()).exit_code, 0);
+}
+
 TEST(Cli, ConvertOfBadInputWritesNothing) {
   const fs::path dir = lodforge::testing::temp_dir("cli_bad_convert");
   write_text(dir / "broken.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n");

@@ -22,6 +22,7 @@
 
 #include "lodforge/batch/glob.hpp"
 #include "lodforge/simplify/simplify.hpp"
+#include "lodforge/symmetry/symmetry.hpp"
 
 namespace lodforge::batch {
 
@@ -41,10 +42,13 @@ class ConfigError : public std::runtime_error {
   std::vector<std::string> problems_;
 };
 
-// Options the config already parses and validates but the simplifier does not take yet (later issues add
-// them to SimplifyOptions; moving one there is a one-line change of its table entry in config.cpp). Empty now:
-// attribute_weights, permissive, priority_channel and skin_weight_threshold moved to SimplifyOptions.
+// Options the config already parses and validates but the simplifier does not take yet (moving one into
+// SimplifyOptions is a one-line change of its table entry in config.cpp).
 struct PendingOptions {
+  // Which mirror plane to look for (`symmetry_plane`: auto | x | y | z | none). Per asset: set in `defaults` or
+  // a class's `options`, not per LOD. The runner reports the detected symmetry (report.json input.symmetry);
+  // a symmetry cost term will take it from there.
+  symmetry::PlaneMode symmetry_plane = symmetry::PlaneMode::automatic;
   friend bool operator==(const PendingOptions&, const PendingOptions&) = default;
 };
 

@@ -18,6 +18,11 @@
 // the same output folder; absent on a first run).
 // "input.repeated_faces": faces that repeat an earlier face of their mesh (core repeated_faces()); simplify()
 // drops them before anything else (reports of earlier versions lack it).
+// "input.symmetry": {"plane_mode": "auto" | "x" | "y" | "z" | "none" (the class's symmetry_plane),
+// "symmetric_edges", "edges": int, "fraction": float, "plane": [nx, ny, nz, d] | null} -- the asset's edges that
+// have a mirror edge (symmetry::detect_symmetry, docs/symmetry.md) summed over its meshes, and the plane
+// n.x + d = 0 of the mesh with the most of them, in that mesh's coordinates; null when none was found (reports
+// of earlier versions lack it).
 // Per LOD: "target" is what the config asked ({"kind": "ratio" | "triangles" | "max_error" | "screen_size",
 // "value"}), "target_triangles" its triangle count for this asset (null for error targets), "triangles" and
 // "vertices" what was achieved; "error_bound_*" the simplifier's bound on the error against the source

@@ -52,8 +52,8 @@ namespace lodforge::batch {
 // earlier face dropped before simplifying; 9 polychord outputs re-pair triangles only into quads that split back
 // the same way, and the triangle engine starts over where the quad engine made under half the reduction;
 // 10 polychord: n-gon corners move; 11 polychord surface fit by least squares (vertices free in 3D); 12 glTF
-// node transforms: budgets and measurements of the asset in world space.
-inline constexpr const char* kAlgorithmVersion = "lodforge-0.1.0/batch-12";
+// node transforms: budgets and measurements of the asset in world space; 13 report.json input.symmetry.
+inline constexpr const char* kAlgorithmVersion = "lodforge-0.1.0/batch-13";
 inline constexpr const char* kLodforgeVersion = "0.1.0";
 
 // Estimated peak memory of one asset in flight. Measured with `lodforge run`: the whole chain (loaded Mesh,

@@ -23,6 +23,8 @@ constexpr const char* kOptionKeys =
     "attribute_weights, seams, permissive, priority_channel, attribute_placement, priority_lock, "
     "skin_weight_threshold, "
     "skin_max_distance";
+// `defaults` and class options also take the per-asset options.
+const std::string kClassOptionKeys = std::string(kOptionKeys) + ", symmetry_plane";
 
 std::string lod_keys() {
   return std::string("ratio, triangles, max_error, screen_size, from, ") + kOptionKeys;
@@ -398,7 +400,7 @@ TEST(BatchConfigErrors, AssetTimeout) {
             expected("defaults.asset_timeout_s: must be a number, got string \"1m\""));
   // A run limit, not an option of a class or a LOD.
   EXPECT_EQ(error_with("/classes/0/options/asset_timeout_s", 5),
-            expected(std::string("classes[0].options.asset_timeout_s: unknown key; allowed: ") + kOptionKeys));
+            expected(std::string("classes[0].options.asset_timeout_s: unknown key; allowed: ") + kClassOptionKeys));
 }
 
 TEST(BatchConfig, EffectiveClassJsonCarriesOutputOptions) {
@@ -563,7 +565,7 @@ TEST(BatchConfigErrors, RedirectedKeys) {
 
 TEST(BatchConfigErrors, UnknownDefaultsKeyListsAllowedKeys) {
   EXPECT_EQ(error_with("/defaults/ratio", 0.5),
-            expected(std::string("defaults.ratio: unknown key; allowed: ") + kOptionKeys +
+            expected(std::string("defaults.ratio: unknown key; allowed: ") + kClassOptionKeys +
                      ", gltf_lods, post_process, write_source_lod0, asset_timeout_s, lod_switch"));
 }
 
@@ -576,7 +578,7 @@ TEST(BatchConfigErrors, OutputOptions) {
             expected("defaults.write_source_lod0: must be true or false, got 1"));
   // Output options shape files, so they are not per class or per LOD.
   EXPECT_EQ(error_with("/classes/0/options/gltf_lods", "files"),
-            expected(std::string("classes[0].options.gltf_lods: unknown key; allowed: ") + kOptionKeys));
+            expected(std::string("classes[0].options.gltf_lods: unknown key; allowed: ") + kClassOptionKeys));
 }
 
 TEST(BatchConfigErrors, EngineAndBorder) {
@@ -632,6 +634,32 @@ TEST(BatchConfig, SeamsPerClassAndLod) {
   EXPECT_EQ(parse_config(minimal()).classes[0].lods[0].options.simplify.seams, SeamMode::relax);
   EXPECT_EQ(c.classes[0].lods[0].options.simplify.seams, SeamMode::keep);
   EXPECT_EQ(c.classes[0].lods[1].options.simplify.seams, SeamMode::relax_materials);
+}
+
+TEST(BatchConfigErrors, SymmetryPlane) {
+  EXPECT_EQ(error_with("/defaults/symmetry_plane", "X"),
+            expected("defaults.symmetry_plane: must be one of \"auto\", \"x\", \"y\", \"z\", \"none\", got string \"X\""));
+  // Detection is per asset, so a LOD cannot choose another plane.
+  EXPECT_EQ(error_with("/classes/0/lods/0/symmetry_plane", "x"),
+            expected("classes[0].lods[0].symmetry_plane: unknown key; allowed: " + lod_keys()));
+}
+
+// The plane defaults to auto, a class's options override `defaults`, and the effective config writes it back.
+TEST(BatchConfig, SymmetryPlanePerClass) {
+  Json doc = with_classes(R"([
+    {"name": "characters", "match": ["chars/**"], "options": {"symmetry_plane": "x"}, "lods": [{"ratio": 0.5}]},
+    {"name": "props", "match": ["props/**"], "lods": [{"ratio": 0.5}]}
+  ])");
+  EXPECT_EQ(parse_config(doc).classes[1].options.pending.symmetry_plane, symmetry::PlaneMode::automatic);
+  doc["defaults"]["symmetry_plane"] = "none";
+  const BatchConfig c = parse_config(doc);
+  EXPECT_EQ(c.classes[0].options.pending.symmetry_plane, symmetry::PlaneMode::x);
+  EXPECT_EQ(c.classes[1].options.pending.symmetry_plane, symmetry::PlaneMode::none);
+  const Json e = effective_config_json(c);
+  EXPECT_EQ(e["defaults"]["symmetry_plane"], "none");
+  EXPECT_EQ(e["classes"][0]["options"]["symmetry_plane"], "x");
+  EXPECT_FALSE(e["classes"][0]["lods"][0].contains("symmetry_plane"));
+  EXPECT_EQ(parse_config(e).classes[0].options.pending.symmetry_plane, symmetry::PlaneMode::x);
 }
 
 TEST(BatchConfigErrors, AttributeWeights) {

@@ -91,6 +91,22 @@ TEST(Report, CheckNamesEveryShapeProblem) {
   EXPECT_EQ(problems, expected);
 }
 
+// input.symmetry is optional (earlier reports lack it); when present its fields and plane are checked.
+TEST(Report, CheckReadsTheSymmetryRecord) {
+  Json r = report({asset("a"), asset("b")});
+  r["assets"][0]["input"]["symmetry"] = {
+      {"plane_mode", "auto"}, {"symmetric_edges", 10}, {"edges", 12}, {"fraction", 10.0 / 12},
+      {"plane", {1.0, 0.0, 0.0, -0.5}}};
+  r["assets"][1]["input"]["symmetry"] = {
+      {"plane_mode", "none"}, {"symmetric_edges", 0}, {"edges", 12}, {"fraction", 0.0}, {"plane", nullptr}};
+  EXPECT_TRUE(check_report(r).empty()) << check_report(r).front();
+  r["assets"][0]["input"]["symmetry"]["plane"] = {1.0, 0.0};
+  r["assets"][1]["input"]["symmetry"].erase("fraction");
+  const std::vector<std::string> expected = {"assets[0].input.symmetry.plane: expected 4 numbers or null",
+                                             "assets[1].input.symmetry.fraction: missing"};
+  EXPECT_EQ(check_report(r), expected);
+}
+
 TEST(Report, WithoutTimingsDropsEverySecondsField) {
   const Json r = without_timings(report({asset("a")}));
   EXPECT_FALSE(r["summary"].contains("seconds"));

@@ -346,6 +346,31 @@ TEST(BatchRunner, RepeatedFacesAreCountedAndDropped) {
   }
 }
 
+// report.json gives each asset's mirror symmetry (input.symmetry); a class with symmetry_plane none skips it.
+TEST(BatchRunner, ReportsTheSymmetryOfEachAsset) {
+  const fs::path dir = testing::temp_dir("batch_runner_symmetry");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 6);
+  io::save_asset(testlib::asset_of({testing::make_cube_quads()}, io::Format::obj), lib.root / "props/cube.obj");
+  const RunResult r = run(lib.root, dir / "out", 2);
+  EXPECT_TRUE(check_report(r.report).empty());
+  const Json& cube = record_of(r.report, "props/cube.obj")["input"]["symmetry"];
+  EXPECT_EQ(cube["plane_mode"], "auto");
+  EXPECT_EQ(cube["edges"], 12);
+  EXPECT_EQ(cube["symmetric_edges"], 12);
+  EXPECT_EQ(cube["fraction"], 1.0);
+  ASSERT_TRUE(cube["plane"].is_array());
+  EXPECT_EQ(cube["plane"].size(), 4u);
+
+  BatchConfig off = config();
+  for (AssetClass& cls : off.classes) cls.options.pending.symmetry_plane = symmetry::PlaneMode::none;
+  const RunResult none = run(lib.root, dir / "out_none", 2, off);
+  EXPECT_TRUE(check_report(none.report).empty());
+  const Json& skipped = record_of(none.report, "props/cube.obj")["input"]["symmetry"];
+  EXPECT_EQ(skipped["plane_mode"], "none");
+  EXPECT_EQ(skipped["symmetric_edges"], 0);
+  EXPECT_TRUE(skipped["plane"].is_null());
+}
+
 TEST(BatchRunner, UnmatchedAssetsAreSkippedWithTheReason) {
   const fs::path dir = testing::temp_dir("batch_runner_unmatched");
   const testlib::Library lib = testlib::write_library(dir / "lib", 10);
