@@ -26,13 +26,12 @@
 #include <bit>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <unordered_map>
 #include <utility>
 #include <vector>
@@ -51,15 +50,17 @@ constexpr double kEigenTruncation = 1e-3;
 constexpr double kMaxResolution = 1048575.0;
 // The search stops once a probe lands within this fraction below the target, or the resolution interval is
 // this narrow (relative).
-constexpr double kCountTolerance = 0.002;
+constexpr double kCountTolerance = 0.005;
 constexpr double kResolutionTolerance = 1e-6;
 constexpr int kMaxProbes = 48;
 // Other grid phases are tried while the count is more than this fraction below the target, each with this
 // many probes.
-constexpr double kPhaseTolerance = 0.01;
-constexpr int kPhaseProbes = 12;
+constexpr double kPhaseTolerance = 0.02;
+constexpr int kPhaseProbes = 8;
 // Rounds of target correction for faces the probes count but the build drops (duplicates, zero area).
-constexpr int kMaxCorrections = 3;
+constexpr int kMaxCorrections = 1;
+// A build that lands this close below the target is kept without a correction round.
+constexpr double kBuildTolerance = 0.01;
 // Budget bisection over the resolution: stops when the interval is this narrow (ratio) or after this many
 // measurements.
 constexpr double kBudgetResolutionRatio = 1.02;
@@ -169,6 +170,7 @@ struct Prepared {
   double extent = 1.0;                  // model length of the normalised unit
   bool has_attributes = false;
   bool single_material = true;
+  bool any_class = false;  // some vertex has a class other than kFreeClass
 };
 
 bool finite(const Vec3f& p) { return std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]); }
@@ -279,6 +281,7 @@ Prepared prepare(const Mesh& m, const SimplifyOptions& options, Parallel& parall
     if (options.border_mode == BorderMode::lock && p.boundary[v]) lock(v);
   }
 
+  p.any_class = std::any_of(p.cls.begin(), p.cls.end(), [](std::uint32_t c) { return c != kFreeClass; });
   const std::size_t nw = m.wedge_count();
   p.has_attributes = (m.normals.size() == nw && nw > 0) || !m.uvs.empty() || !m.colors.empty() || !m.custom.empty() ||
                      !m.morph_targets.empty() || m.tangents.size() == nw;
@@ -302,14 +305,12 @@ constexpr std::array<double, 3> kPhases[] = {{0.5, 0.5, 0.5},    {0.25, 0.25, 0.
                                              {0.25, 0.5, 0.75},  {0.75, 0.25, 0.5},  {0.5, 0.75, 0.25},
                                              {0.125, 0.625, 0.375}, {0.875, 0.375, 0.625}};
 
+// Normalised positions lie in [0, 1] (non-finite ones at 0), so each index fits its 21 bits.
 std::uint64_t cell_of(const Vec3f& u, const Grid& g) {
-  std::uint64_t key = 0;
-  for (int i = 0; i < 3; ++i) {
-    const double x = std::clamp(double{u[i]} * g.resolution + g.phase[static_cast<std::size_t>(i)], 0.0,
-                                kMaxResolution + 1.0);
-    key = (key << 21) | static_cast<std::uint64_t>(x);
-  }
-  return key;
+  const auto index = [&](int i) {
+    return static_cast<std::uint64_t>(std::max(0.0, double{u[i]} * g.resolution + g.phase[static_cast<std::size_t>(i)]));
+  };
+  return (index(0) << 42) | (index(1) << 21) | index(2);
 }
 
 // Triangles whose corners fall in three different clusters on grid `g` (before duplicates go).
@@ -321,20 +322,30 @@ std::size_t count_triangles(const Prepared& p, const Grid& g, Parallel& parallel
   });
   const std::size_t chunks = (p.triangles + kChunk - 1) / kChunk;
   std::vector<std::size_t> counts(chunks, 0);
-  parallel.for_ranges(chunks, 1, [&](std::size_t cb, std::size_t ce) {
-    for (std::size_t c = cb; c < ce; ++c) {
-      std::size_t n = 0;
-      const std::size_t end = std::min(p.triangles, (c + 1) * kChunk);
-      for (std::size_t t = c * kChunk; t < end; ++t) {
-        const std::uint32_t a = p.tri[3 * t], b = p.tri[3 * t + 1], d = p.tri[3 * t + 2];
-        const bool ab = cells[a] == cells[b] && p.cls[a] == p.cls[b];
-        const bool bd = cells[b] == cells[d] && p.cls[b] == p.cls[d];
-        const bool ad = cells[a] == cells[d] && p.cls[a] == p.cls[d];
-        n += !(ab || bd || ad);
+  // Without classes (the common case) the cells alone decide.
+  auto count = [&](auto with_classes) {
+    parallel.for_ranges(chunks, 1, [&](std::size_t cb, std::size_t ce) {
+      for (std::size_t c = cb; c < ce; ++c) {
+        std::size_t n = 0;
+        const std::size_t end = std::min(p.triangles, (c + 1) * kChunk);
+        for (std::size_t t = c * kChunk; t < end; ++t) {
+          const std::uint32_t a = p.tri[3 * t], b = p.tri[3 * t + 1], d = p.tri[3 * t + 2];
+          const std::uint64_t ca = cells[a], cb2 = cells[b], cd = cells[d];
+          if constexpr (decltype(with_classes)::value) {
+            const bool ab = ca == cb2 && p.cls[a] == p.cls[b];
+            const bool bd = cb2 == cd && p.cls[b] == p.cls[d];
+            const bool ad = ca == cd && p.cls[a] == p.cls[d];
+            n += !(ab || bd || ad);
+          } else {
+            n += ca != cb2 && cb2 != cd && ca != cd;
+          }
+        }
+        counts[c] = n;
       }
-      counts[c] = n;
-    }
-  });
+    });
+  };
+  if (p.any_class) count(std::true_type{});
+  else count(std::false_type{});
   std::size_t n = 0;
   for (std::size_t c : counts) n += c;
   return n;
@@ -385,12 +396,11 @@ Probe search_phase(const Prepared& p, std::size_t target, const std::array<doubl
 
 // The grid for `target`: the default phase first; where the count stays more than a percent below the
 // target (count jumps on regular meshes), a few other phases near the resolution found.
-Probe search_grid(const Prepared& p, std::size_t target, Parallel& parallel, std::size_t& probes,
+Probe search_grid(const Prepared& p, std::size_t target, double start, Parallel& parallel, std::size_t& probes,
                   const StopRequest& stop) {
   std::vector<std::uint64_t> cells;
-  Probe best = search_phase(p, target, kPhases[0], std::sqrt(static_cast<double>(target) / 2.0), kMaxProbes,
-                            parallel, probes, stop, cells);
-  const double near = best.grid.resolution > 0.0 ? best.grid.resolution : std::sqrt(static_cast<double>(target) / 2.0);
+  Probe best = search_phase(p, target, kPhases[0], start, kMaxProbes, parallel, probes, stop, cells);
+  const double near = best.grid.resolution > 0.0 ? best.grid.resolution : start;
   for (std::size_t i = 1; i < std::size(kPhases); ++i) {
     if (static_cast<double>(target - best.count) <= kPhaseTolerance * static_cast<double>(target)) break;
     const Probe other = search_phase(p, target, kPhases[i], near, kPhaseProbes, parallel, probes, stop, cells);
@@ -597,9 +607,17 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
   // Render vertices: a corner's class is the connected piece of its wedge among the wedges of its cluster
   // (wedges joined by a face, both in the cluster), with the face's material. Without attributes a cluster
   // and a material make a class.
-  std::vector<std::uint32_t> corner_class(3 * p.triangles);
+  const bool per_cluster = !p.has_attributes && p.single_material;  // a class per cluster: no corner pass
+  std::vector<std::uint32_t> corner_class(per_cluster ? 0 : 3 * p.triangles);
   std::vector<WedgeClass> classes;
-  {
+  auto class_of = [&](std::size_t t, std::uint32_t k) {
+    return per_cluster ? cluster[p.tri[3 * t + k]] : corner_class[3 * t + k];
+  };
+  const bool nearest = options.attribute_placement == AttributePlacement::keep;
+  if (per_cluster) {
+    classes.resize(nc);
+    for (std::uint32_t c = 0; c < nc; ++c) classes[c].cluster = c;
+  } else {
     std::vector<std::uint32_t> parent;
     auto find = [&](std::uint32_t x) {
       while (parent[x] != x) x = parent[x] = parent[parent[x]];
@@ -645,6 +663,7 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
         WedgeClass& wc = classes[cls];
         ++wc.corners;
         wc.first_wedge = std::min(wc.first_wedge, w);
+        if (!nearest) continue;
         const Vec3d d = to_double(p.unit[v]) - rep[wc.cluster];
         const double dist = dot(d, d);
         if (dist < wc.nearest || (dist == wc.nearest && w < wc.nearest_wedge)) {
@@ -670,7 +689,7 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
   const bool groups = m.face_group.size() == m.face_count();
   for (std::uint32_t t : kept) {
     for (std::uint32_t k = 0; k < 3; ++k) {
-      const std::uint32_t cls = corner_class[3 * t + k];
+      const std::uint32_t cls = class_of(t, k);
       if (wedge_id[cls] == kInvalidIndex) {
         wedge_id[cls] = static_cast<std::uint32_t>(out_wedge_class.size());
         out_wedge_class.push_back(cls);
@@ -874,8 +893,10 @@ SimplifyResult run_cluster(const Mesh& mesh, const SimplifyOptions& options) {
   Built best;
   {
     double aim = static_cast<double>(target);
+    // A first guess from a surface's count ~ 2 × cells: a unit square gives resolution² cells.
+    double start = std::sqrt(aim / 2.0);
     for (int round = 0; round <= kMaxCorrections; ++round) {
-      const Probe found = search_grid(p, static_cast<std::size_t>(aim), parallel, probes, options.stop);
+      const Probe found = search_grid(p, static_cast<std::size_t>(aim), start, parallel, probes, options.stop);
       const std::size_t raw = found.count;
       Built b = build(p, found.grid, options, parallel);
       const bool better = b.triangles <= target && (round == 0 || b.triangles > best.triangles);
@@ -884,9 +905,10 @@ SimplifyResult run_cluster(const Mesh& mesh, const SimplifyOptions& options) {
         best = std::move(b);
       }
       if (options.stop.requested() || raw == 0 || best.triangles == 0) break;
-      if (static_cast<double>(target - best.triangles) <= 0.01 * static_cast<double>(target)) break;
+      if (static_cast<double>(target - best.triangles) <= kBuildTolerance * static_cast<double>(target)) break;
       const double next = aim * static_cast<double>(raw) / static_cast<double>(std::max<std::size_t>(1, b.triangles));
       if (!(next > aim * (1.0 + kCountTolerance))) break;
+      start = found.grid.resolution * std::sqrt(next / aim);
       aim = std::min(next, static_cast<double>(p.triangles));
     }
   }

@@ -139,7 +139,7 @@ struct Row {
   std::string mesh{};
   double ratio = 0;
   bool terrain = false;
-  std::size_t input = 0, sloppy_tris = 0, cluster_tris = 0;
+  std::size_t input = 0, sloppy_tris = 0, cluster_tris = 0, probes = 0;
   double sloppy_ms = 0, cluster_1t_ms = 0, cluster_all_ms = 0;
   double sloppy_rms = 0, cluster_rms = 0, sloppy_haus = 0, cluster_haus = 0;
 };
@@ -194,8 +194,8 @@ int main(int argc, char** argv) {
   }
   std::printf("lodforge_bench_cluster: %u hardware threads, load average %.2f, %zu eval samples\n",
               std::thread::hardware_concurrency(), load, eval_samples);
-  std::printf("%-26s %6s %9s %9s %9s %10s %10s %10s %7s %7s %10s %10s %7s\n", "mesh", "ratio", "input", "sloppy",
-              "cluster", "sloppy_ms", "clu1t_ms", "cluall_ms", "spd1t", "spdall", "sloppy_rms", "clu_rms", "rms_x");
+  std::printf("%-26s %6s %9s %9s %9s %10s %10s %10s %7s %7s %10s %10s %7s %6s\n", "mesh", "ratio", "input", "sloppy",
+              "cluster", "sloppy_ms", "clu1t_ms", "cluall_ms", "spd1t", "spdall", "sloppy_rms", "clu_rms", "rms_x", "probes");
 
   std::vector<Row> rows;
   auto run = [&](const Input& in, double ratio) {
@@ -219,6 +219,7 @@ int main(int argc, char** argv) {
     row.cluster_all_ms = best_ms(reps, rep_budget, [&] { r_all = lodforge::simplify(in.mesh, o); });
     if (!(r_all.mesh == r.mesh)) std::printf("  !! %s: output differs between 1 thread and all threads\n", in.name.c_str());
     row.cluster_tris = r.triangles_after;
+    row.probes = r.rounds;
     lodforge::EvalOptions eo{.samples = eval_samples};
     const lodforge::EvalResult es = lodforge::evaluate(in.mesh, sloppy, eo);
     const lodforge::EvalResult ec = lodforge::evaluate(in.mesh, r.mesh, eo);
@@ -226,10 +227,10 @@ int main(int argc, char** argv) {
     row.cluster_rms = ec.rms_rel();
     row.sloppy_haus = es.hausdorff_rel();
     row.cluster_haus = ec.hausdorff_rel();
-    std::printf("%-26s %6.3f %9zu %9zu %9zu %10.2f %10.2f %10.2f %6.2fx %6.2fx %10.3e %10.3e %6.2fx\n",
+    std::printf("%-26s %6.3f %9zu %9zu %9zu %10.2f %10.2f %10.2f %6.2fx %6.2fx %10.3e %10.3e %6.2fx %6zu\n",
                 row.mesh.c_str(), ratio, row.input, row.sloppy_tris, row.cluster_tris, row.sloppy_ms,
                 row.cluster_1t_ms, row.cluster_all_ms, row.sloppy_ms / row.cluster_1t_ms,
-                row.sloppy_ms / row.cluster_all_ms, row.sloppy_rms, row.cluster_rms, row.cluster_rms / row.sloppy_rms);
+                row.sloppy_ms / row.cluster_all_ms, row.sloppy_rms, row.cluster_rms, row.cluster_rms / row.sloppy_rms, row.probes);
     std::fflush(stdout);
     rows.push_back(row);
   };
