@@ -11,6 +11,8 @@
 #include <vector>
 
 #include "attribute_fixtures.hpp"
+#include "corpus_assets.hpp"
+#include "lodforge/io/asset.hpp"
 #include "lodforge/eval/eval.hpp"
 #include "lodforge/simplify/simplify.hpp"
 #include "simplify_fixtures.hpp"
@@ -301,6 +303,56 @@ TEST(Clustering, RatioOneAndStopRequestsLeaveTheInput) {
   const SimplifyResult s = simplify(sphere, o);
   EXPECT_EQ(s.stop_reason, StopReason::stopped);
 }
+
+// The glTF and skinned corpus (skipped with a message when absent): no triangle spans two UV charts, every
+// corner keeps its face's material, skin weights stay normalised, at 25% and 5%.
+class ClusteringCorpus : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(ClusteringCorpus, KeepsChartsMaterialsAndSkin) {
+  LODFORGE_REQUIRE_CORPUS(src, GetParam());
+  const io::Asset asset = io::load_asset(src);
+  for (double ratio : {0.25, 0.05}) {
+    for (std::size_t i = 0; i < asset.meshes.size(); ++i) {
+      SCOPED_TRACE(std::string(GetParam()) + " mesh " + std::to_string(i) + " ratio " + std::to_string(ratio));
+      Mesh tagged = triangulated(asset.meshes[i]);
+      tag_charts(tagged);
+      // Each wedge's material (the first face using it), to check that no corner borrows another material's.
+      CustomAttribute material{"_MATERIAL_TAG", 1, {}, std::vector<float>(tagged.wedge_count(), -1.0f)};
+      bool shared = false;
+      for (std::size_t f = 0; f < tagged.face_count(); ++f) {
+        for (std::uint32_t c = tagged.face_offsets[f]; c < tagged.face_offsets[f + 1]; ++c) {
+          float& m = material.values[tagged.corner_wedge[c]];
+          shared = shared || (m >= 0.0f && m != static_cast<float>(tagged.face_material[f]));
+          m = static_cast<float>(tagged.face_material[f]);
+        }
+      }
+      tagged.custom.push_back(std::move(material));
+      const SimplifyResult r = simplify(tagged, cluster(ratio));
+      const auto report = chart_report(r.mesh, chart_orientation(tagged));
+      EXPECT_EQ(report.spanning, 0u);
+      EXPECT_LE(r.triangles_after, r.triangles_before);
+      const std::vector<float>& tag = r.mesh.custom.back().values;
+      for (std::size_t f = 0; f < r.mesh.face_count() && !shared; ++f) {
+        for (std::uint32_t c = r.mesh.face_offsets[f]; c < r.mesh.face_offsets[f + 1]; ++c) {
+          ASSERT_EQ(tag[r.mesh.corner_wedge[c]], static_cast<float>(r.mesh.face_material[f])) << "face " << f;
+        }
+      }
+      if (!asset.meshes[i].skin.empty()) {
+        ASSERT_EQ(r.mesh.skin.size(), r.mesh.vertex_count());
+        for (const SkinInfluences& s : r.mesh.skin) {
+          double sum = 0;
+          for (float w : s.weights) sum += w;
+          EXPECT_NEAR(sum, 1.0, 1e-5);
+        }
+      }
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Gltf, ClusteringCorpus, ::testing::ValuesIn(testing::kGltfAttributeAssets),
+                         [](const ::testing::TestParamInfo<const char*>& info) {
+                           return testing::test_name_of(info.param);
+                         });
 
 }  // namespace
 }  // namespace lodforge
