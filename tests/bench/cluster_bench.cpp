@@ -249,7 +249,7 @@ int main(int argc, char** argv) {
     for (double ratio : terrain_ratios) run(terrain, ratio);
   }
 
-  std::printf("\nsummary (Hausdorff, geomean over rows: sloppy vs cluster in the rows' order is in the table)\n");
+  std::printf("\nsummary (geometric means over the rows)\n");
   auto report = [&](const char* what, bool terrain) {
     std::vector<double> s1, sa, q, h;
     for (const Row& r : rows) {
