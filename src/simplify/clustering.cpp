@@ -178,6 +178,11 @@ struct Prepared {
   double area = 0.0;       // surface area in normalised units
 };
 
+// A face's material; 0 where the mesh lists none.
+std::uint32_t material_of(const Mesh& m, std::size_t f) {
+  return f < m.face_material.size() ? m.face_material[f] : 0;
+}
+
 bool finite(const Vec3f& p) { return std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]); }
 
 // The dominant joint of a vertex (largest weight, lowest joint on ties), +1; 0 without weights.
@@ -295,7 +300,7 @@ Prepared prepare(const Mesh& m, const SimplifyOptions& options, Parallel& parall
   p.has_attributes = (m.normals.size() == nw && nw > 0) || !m.uvs.empty() || !m.colors.empty() || !m.custom.empty() ||
                      !m.morph_targets.empty() || m.tangents.size() == nw;
   for (std::size_t t = 1; t < p.triangles; ++t) {
-    if (m.face_material[p.tri_face[t]] != m.face_material[p.tri_face[0]]) {
+    if (material_of(m, p.tri_face[t]) != material_of(m, p.tri_face[0])) {
       p.single_material = false;
       break;
     }
@@ -609,7 +614,7 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
         const std::uint32_t s = c0;
         c0 = c1, c1 = c2, c2 = s;
       }
-      if (!seen.emplace(FaceKey{c0, c1, c2, m.face_material[p.tri_face[t]]}, 0).second) continue;
+      if (!seen.emplace(FaceKey{c0, c1, c2, material_of(m, p.tri_face[t])}, 0).second) continue;
       kept.push_back(static_cast<std::uint32_t>(t));
     }
   }
@@ -655,7 +660,7 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
     first_material.assign(first_class.size(), 0);
     std::unordered_map<std::uint64_t, std::uint32_t> other;
     for (std::size_t t = 0; t < p.triangles; ++t) {
-      const std::uint32_t f = p.tri_face[t], c = m.face_offsets[f], material = m.face_material[f];
+      const std::uint32_t f = p.tri_face[t], c = m.face_offsets[f], material = material_of(m, f);
       for (std::uint32_t k = 0; k < 3; ++k) {
         const std::uint32_t w = m.corner_wedge[c + k];
         const std::uint32_t v = m.wedge_vertex[w];
@@ -716,7 +721,7 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
       o.corner_wedge.push_back(wedge_id[cls]);
     }
     o.face_offsets.push_back(static_cast<std::uint32_t>(o.corner_wedge.size()));
-    o.face_material.push_back(m.face_material[p.tri_face[t]]);
+    o.face_material.push_back(material_of(m, p.tri_face[t]));
     if (groups) o.face_group.push_back(m.face_group[p.tri_face[t]]);
   }
   const std::size_t ov = out_vertex_cluster.size(), ow = out_wedge_class.size();
@@ -925,6 +930,12 @@ SimplifyResult run_cluster(const Mesh& mesh, const SimplifyOptions& options) {
       start = found.grid.resolution * std::sqrt(next / aim);
       aim = std::min(next, static_cast<double>(p.triangles));
     }
+  }
+  if (options.stop.requested() && best.triangles == 0) {  // stopped before any LOD was built: the input
+    SimplifyResult r = unchanged(tris);
+    r.rounds = probes;
+    r.stop_reason = StopReason::stopped;
+    return finish(std::move(r), t1);
   }
   SimplifyResult r = to_result(std::move(best));
   r.rounds = probes;
