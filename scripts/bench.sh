@@ -17,6 +17,11 @@
 #   scripts/bench.sh quad [ARGS...]       only lodforge_bench_quad (polychord engine vs edge_collapse and meshopt on
 #                                         the quad corpus at 50/25/10%, plus a generated 100k-quad torus; --ratios,
 #                                         --mesh FILE, --input DIR, --generated-quads N, --no-generated)
+#   scripts/bench.sh cluster [ARGS...]    only lodforge_bench_cluster (the vertex clustering engine vs
+#                                         meshopt_simplifySloppy at the same triangle count on the scanned corpus and a
+#                                         generated fBm terrain: speed on 1 and all threads, RMS and Hausdorff; targets
+#                                         speed >= 1.0x, RMS <= 0.8x; --ratios, --terrain-ratios, --terrain-side N
+#                                         (2900: 16.8M triangles), --mesh FILE, --no-terrain, --eval-samples N, --reps N)
 #   scripts/bench.sh report [ARGS...]     only lodforge_bench_report (report.html for 100 000 assets in headless
 #                                         Chromium: load <= 3 s, filter/sort <= 200 ms, <= 1 KB per asset;
 #                                         --assets N, --reps N, --out DIR; needs node + puppeteer-core + chromium)
@@ -82,15 +87,17 @@ ATTRIBUTES="$BUILD_DIR/tests/bench/lodforge_bench_attributes"
 EVAL="$BUILD_DIR/tests/bench/lodforge_bench_eval"
 BUDGET="$BUILD_DIR/tests/bench/lodforge_bench_budget"
 REPORT="$BUILD_DIR/tests/bench/lodforge_bench_report"
+CLUSTER="$BUILD_DIR/tests/bench/lodforge_bench_cluster"
 mode=all
 case "${1:-}" in
-  simplify | load | batch | quad | attributes | eval | budget | report) mode=$1; shift ;;
+  simplify | load | batch | quad | attributes | eval | budget | report | cluster) mode=$1; shift ;;
 esac
 # The binaries this mode runs must be built (the combined mode runs simplify, load and batch).
 case $mode in
   all) needed=("$SIMPLIFY" "$LOAD" "$BATCH") ;;
   simplify) needed=("$SIMPLIFY") ;; load) needed=("$LOAD") ;; batch) needed=("$BATCH") ;; quad) needed=("$QUAD") ;;
   attributes) needed=("$ATTRIBUTES") ;; eval) needed=("$EVAL") ;; budget) needed=("$BUDGET") ;; report) needed=("$REPORT") ;;
+  cluster) needed=("$CLUSTER") ;;
 esac
 for b in "${needed[@]}"; do
   if [ ! -x "$b" ]; then
@@ -124,6 +131,7 @@ case $mode in
   quad) "$QUAD" "$@" ;;
   eval) "$EVAL" "$@" ;;
   budget) "$BUDGET" "$@" ;;
+  cluster) "$CLUSTER" "$@" ;;
   report) "$REPORT" --out "$OUT_DIR/report" "$@" ;;
   attributes) "$ATTRIBUTES" --json "$OUT_DIR/bench-attributes.json" "$@" ;;
   all)

@@ -300,6 +300,7 @@ constexpr EnumName<Engine> kEngineNames[] = {
     {"edge_collapse", Engine::edge_collapse},
     {"multiple_choice", Engine::multiple_choice},
     {"polychord", Engine::polychord},
+    {"cluster", Engine::cluster},
 };
 
 constexpr EnumName<BorderMode> kBorderNames[] = {

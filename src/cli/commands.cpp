@@ -252,7 +252,10 @@ void register_simplify(CLI::App& app) {
                   "input, measured both ways");
   cmd->add_flag("--no-verify", a->no_verify,
                 "stop on the engine's QEM error alone; do not measure the LOD against the budget (faster, not a bound)");
-  cmd->add_option("--engine", a->engine, "edge_collapse | multiple_choice | polychord")->default_val("edge_collapse");
+  cmd->add_option("--engine", a->engine,
+                  "edge_collapse | multiple_choice | polychord | cluster (vertex clustering: fastest, coarsest; far "
+                  "LODs and huge inputs)")
+      ->default_val("edge_collapse");
   cmd->add_option("--border", a->border, "free | preserve | lock")->default_val("preserve");
   cmd->add_option("--threads", a->opt.threads, "worker threads (0 = all cores)")->default_val(0);
   cmd->add_option("--seed", a->opt.seed, "random seed (multiple_choice)")->default_val(1);
@@ -293,8 +296,9 @@ void register_simplify(CLI::App& app) {
     if (a->engine == "edge_collapse") opt.engine = Engine::edge_collapse;
     else if (a->engine == "multiple_choice") opt.engine = Engine::multiple_choice;
     else if (a->engine == "polychord") opt.engine = Engine::polychord;
+    else if (a->engine == "cluster") opt.engine = Engine::cluster;
     else {
-      std::fprintf(stderr, "error: --engine: unknown engine '%s' (edge_collapse | multiple_choice | polychord)\n",
+      std::fprintf(stderr, "error: --engine: unknown engine '%s' (edge_collapse | multiple_choice | polychord | cluster)\n",
                    a->engine.c_str());
       set_exit_code(2);
       return;

@@ -29,6 +29,9 @@ SimplifyResult run_edge_collapse(const Mesh& triangles, const SimplifyOptions& o
                                  const CollapsePolicies& policies = {}, std::vector<CollapseRecord>* log = nullptr);
 SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions& options,
                                    const CollapsePolicies& policies = {}, std::vector<CollapseRecord>* log = nullptr);
+// Vertex clustering (clustering.cpp): any face kinds (polygons are triangulated first), no collapse log; an
+// error budget is held by measuring the output per grid resolution. Fills the whole result.
+SimplifyResult run_cluster(const Mesh& mesh, const SimplifyOptions& options);
 
 // simplify() with verify_budget and an error budget: runs `engine` with a log, measures its output against the
 // reference and backs off along the log where it exceeds the budget (budget.cpp).

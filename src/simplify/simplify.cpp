@@ -1,5 +1,6 @@
 // The simplifier entry point: option checks and dispatch to the engines (edge_collapse.cpp: greedy QEM after
-// Garland & Heckbert 1997; multiple_choice.cpp: Wu & Kobbelt 2002). Polygon input is fan-triangulated first.
+// Garland & Heckbert 1997; multiple_choice.cpp: Wu & Kobbelt 2002; clustering.cpp: vertex clustering after
+// Lindstrom 2000 and Willmott 2011). Polygon input is fan-triangulated first.
 #include "lodforge/simplify/simplify.hpp"
 
 #include <algorithm>
@@ -344,6 +345,11 @@ SimplifyResult simplify(const Mesh& mesh, const SimplifyOptions& options, const 
     std::string msg = "invalid simplify options:";
     for (const std::string& p : problems) msg += "\n  " + p;
     throw std::invalid_argument(msg);
+  }
+  // Clustering drops repeated faces itself (and collapse policies mean nothing to it).
+  if (options.engine == Engine::cluster) {
+    if (policies.any()) throw std::invalid_argument("invalid simplify options:\n  the cluster engine takes no collapse policies");
+    return collapse::run_cluster(mesh, options);
   }
   // Faces repeating an earlier one go first (they draw nothing, and their non-manifold edges would stop the
   // engines around them: the MakeHuman hair at 10% measured a mean distance of 2.05% of the diagonal with

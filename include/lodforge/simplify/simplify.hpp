@@ -38,6 +38,8 @@ enum class Engine {
   multiple_choice,  // Wu-Kobbelt: best of k sampled candidates per step (fast preset)
   polychord,        // quad-preserving sub-polychord collapse (quad/polychord_collapse.hpp); keeps quads, then
                     // continues with edge_collapse (triangulating) if it stops before the target
+  cluster,          // vertex clustering on a grid (Lindstrom's quadric per cell, attribute classes per cell):
+                    // fastest, for far LODs and huge inputs; no collapses, so collapse policies do not apply
 };
 
 // Multipliers of the attribute error terms against the geometric error; 0 leaves that

@@ -499,7 +499,7 @@ TEST(BatchConfig, SchemaDocumentsEveryKey) {
   }
   EXPECT_EQ(defs["class"]["properties"]["lods"]["maxItems"], kMaxLods);
   EXPECT_EQ(defs["simplifierOptions"]["properties"]["engine"]["enum"],
-            Json::parse(R"(["edge_collapse", "multiple_choice", "polychord"])"));
+            Json::parse(R"(["edge_collapse", "multiple_choice", "polychord", "cluster"])"));
 }
 
 // --- every error path, with its message ------------------------------------------------------------------
@@ -583,10 +583,11 @@ TEST(BatchConfigErrors, OutputOptions) {
 
 TEST(BatchConfigErrors, EngineAndBorder) {
   EXPECT_EQ(error_with("/defaults/engine", "quadric"),
-            expected("defaults.engine: must be one of \"edge_collapse\", \"multiple_choice\", \"polychord\", got "
-                     "string \"quadric\""));
+            expected("defaults.engine: must be one of \"edge_collapse\", \"multiple_choice\", \"polychord\", "
+                     "\"cluster\", got string \"quadric\""));
   EXPECT_EQ(error_with("/defaults/engine", 1),
-            expected("defaults.engine: must be one of \"edge_collapse\", \"multiple_choice\", \"polychord\", got 1"));
+            expected("defaults.engine: must be one of \"edge_collapse\", \"multiple_choice\", \"polychord\", "
+                     "\"cluster\", got 1"));
   EXPECT_EQ(error_with("/classes/0/lods/0/border", "locked"),
             expected("classes[0].lods[0].border: must be one of \"free\", \"preserve\", \"lock\", got string "
                      "\"locked\""));
@@ -702,7 +703,7 @@ TEST(BatchConfigErrors, ClassStructure) {
   EXPECT_EQ(error_with("/classes/0/options", 3), expected("classes[0].options: must be an object, got 3"));
   EXPECT_EQ(error_with("/classes/0/options/engine", "x"),
             expected("classes[0].options.engine: must be one of \"edge_collapse\", \"multiple_choice\", \"polychord\", "
-                     "got string \"x\""));
+                     "\"cluster\", got string \"x\""));
 }
 
 TEST(BatchConfigErrors, DuplicateClassNames) {
@@ -864,7 +865,8 @@ TEST(BatchConfigErrors, ReportsEveryProblemAtOnceOnePerLine) {
     EXPECT_EQ(e.source(), "x.json");
     const std::vector<std::string> want = {
         "version: unsupported version 3; this lodforge reads version 1",
-        "defaults.engine: must be one of \"edge_collapse\", \"multiple_choice\", \"polychord\", got string \"fast\"",
+        "defaults.engine: must be one of \"edge_collapse\", \"multiple_choice\", \"polychord\", \"cluster\", got "
+        "string \"fast\"",
         "classes[0].lods[0].colour: unknown key; allowed: " + lod_keys(),
         "classes[0].lods[1].ratio: must be < previous ratio 0.5",
         "classes[1].match: must not be empty",
