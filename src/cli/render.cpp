@@ -120,8 +120,9 @@ void register_render_wire(CLI::App& app) {
   };
   auto a = std::make_shared<Args>();
   CLI::App* cmd = app.add_subcommand(
-      "render-wire", "Write an SVG wireframe of an asset (orthographic; quads drawn as quads, triangles tinted), or with "
-      "OUT.png the shaded picture the batch report shows.");
+      "render-wire",
+      "Write an SVG wireframe of an asset (orthographic; quads drawn as quads, triangles tinted), or with OUT.png "
+      "the shaded picture the batch report shows.");
   cmd->add_option("input", a->in, "input asset")->required();
   cmd->add_option("output", a->out, "output .svg or .png (written atomically)")->required();
   cmd->add_option("--view", a->view, "front | back | left | right | top | bottom | iso")->default_val("front");

@@ -23,9 +23,8 @@ namespace lodforge::io {
 namespace {
 
 constexpr PictureView kViews[] = {
-    {"front", {{0, 0, -1}}, {{0, 1, 0}}}, {"back", {{0, 0, 1}}, {{0, 1, 0}}},
-    {"left", {{1, 0, 0}}, {{0, 1, 0}}},   {"right", {{-1, 0, 0}}, {{0, 1, 0}}},
-    {"top", {{0, -1, 0}}, {{0, 0, -1}}},  {"bottom", {{0, 1, 0}}, {{0, 0, 1}}},
+    {"front", {{0, 0, -1}}, {{0, 1, 0}}}, {"back", {{0, 0, 1}}, {{0, 1, 0}}},  {"left", {{1, 0, 0}}, {{0, 1, 0}}},
+    {"right", {{-1, 0, 0}}, {{0, 1, 0}}}, {"top", {{0, -1, 0}}, {{0, 0, -1}}}, {"bottom", {{0, 1, 0}}, {{0, 0, 1}}},
     {"iso", {{-1, -1, -1}}, {{0, 1, 0}}},
 };
 
@@ -87,7 +86,8 @@ struct Raster {
         const double eca = s * ((a.x - c.x) * (y - c.y) - (a.y - c.y) * (x - c.x));
         if (eab < 0 || ebc < 0 || eca < 0) continue;
         const double z = (ebc * a.z + eca * b.z + eab * c.z) * inv;
-        const std::size_t p = static_cast<std::size_t>(py) * static_cast<std::size_t>(size) + static_cast<std::size_t>(px);
+        const std::size_t p =
+            static_cast<std::size_t>(py) * static_cast<std::size_t>(size) + static_cast<std::size_t>(px);
         if (!(z < depth[p])) continue;
         depth[p] = z;
         const bool on_edge = ((edges & 1u) && eab < kEdgePixels * lab) || ((edges & 2u) && ebc < kEdgePixels * lbc) ||
@@ -172,9 +172,9 @@ Image render_picture(const Mesh& mesh, const PictureFrame& frame, int size) {
     }
     const double facing = -dot(normalized(normal), frame.forward);
     const double light = facing > 0 ? 0.55 + 0.45 * facing : 0.35 + 0.2 * std::min(1.0, -facing);
-    std::array<double, 3> base = {150, 170, 200};      // quads
-    if (n == 3) base = {240, 160, 90};                 // triangles
-    if (n > 4) base = {140, 200, 140};                 // n-gons
+    std::array<double, 3> base = {150, 170, 200};  // quads
+    if (n == 3) base = {240, 160, 90};             // triangles
+    if (n > 4) base = {140, 200, 140};             // n-gons
     std::array<std::uint8_t, 3> fill{}, edge{};
     for (int i = 0; i < 3; ++i) {
       fill[i] = channel(base[i] * light);

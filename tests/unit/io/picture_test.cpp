@@ -29,7 +29,8 @@ std::uint32_t big_endian(const std::string& s, std::size_t at) {
 }
 
 bool white(const Image& im, int x, int y) {
-  const std::size_t p = 3 * (static_cast<std::size_t>(y) * static_cast<std::size_t>(im.width) + static_cast<std::size_t>(x));
+  const std::size_t p =
+      3 * (static_cast<std::size_t>(y) * static_cast<std::size_t>(im.width) + static_cast<std::size_t>(x));
   return im.rgb[p] == 255 && im.rgb[p + 1] == 255 && im.rgb[p + 2] == 255;
 }
 
@@ -62,8 +63,8 @@ TEST(Picture, PngIsTheSizeAskedForAndAtMost256Pixels) {
     EXPECT_EQ(png.substr(12, 4), "IHDR");
     EXPECT_EQ(big_endian(png, 16), static_cast<std::uint32_t>(size));  // width
     EXPECT_EQ(big_endian(png, 20), static_cast<std::uint32_t>(size));  // height
-    EXPECT_EQ(png[24], 8);  // bit depth
-    EXPECT_EQ(png[25], 2);  // RGB
+    EXPECT_EQ(png[24], 8);                                             // bit depth
+    EXPECT_EQ(png[25], 2);                                             // RGB
   }
   EXPECT_THROW(render_picture(sphere, frame, 0), std::invalid_argument);
   EXPECT_THROW(render_picture(sphere, frame, 4097), std::invalid_argument);
@@ -101,8 +102,8 @@ TEST(Picture, ColoursQuadsAndTrianglesAndKeepsTheSourceFrame) {
   // The same tetrahedron scaled down to half, drawn in the big one's frame, covers about a quarter of the pixels.
   Mesh small = tet;
   for (Vec3f& p : small.positions) p = p * 0.5f;
-  const double ratio = double(drawn_pixels(render_picture(small, frame, 128))) /
-                       double(drawn_pixels(render_picture(tet, frame, 128)));
+  const double ratio =
+      double(drawn_pixels(render_picture(small, frame, 128))) / double(drawn_pixels(render_picture(tet, frame, 128)));
   EXPECT_NEAR(ratio, 0.25, 0.05);
 }
 
