@@ -29,7 +29,8 @@ constexpr PictureView kViews[] = {
 };
 
 constexpr double kMargin = 0.04;     // of the frame's side, each side
-constexpr double kEdgePixels = 0.6;  // how close to a polygon edge a pixel centre is drawn as edge
+constexpr double kEdgePixels = 0.6;   // how close to a polygon edge a pixel centre is drawn as edge
+constexpr double kEdgeMinArea = 6.0;  // square pixels: smaller triangles are drawn without their edges
 
 Vec3d normalized(const Vec3d& v) {
   const double l = length(v);
@@ -71,6 +72,7 @@ struct Raster {
     const double area = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
     if (!(std::abs(area) > 1e-12) || !std::isfinite(area)) return;  // edge-on, degenerate or not finite
     const double s = area > 0 ? 1.0 : -1.0, inv = 1.0 / std::abs(area);
+    if (std::abs(area) < 2 * kEdgeMinArea) edges = 0;  // edges that close together would hide the shading
     const auto len = [](const Projected& p, const Projected& q) {
       return std::sqrt((q.x - p.x) * (q.x - p.x) + (q.y - p.y) * (q.y - p.y));
     };

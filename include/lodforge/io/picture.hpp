@@ -46,7 +46,8 @@ struct Image {
 
 // A size x size render of `mesh` on white: faces shaded by how much they face the viewer (faces turned away
 // darker), quads grey-blue, triangles orange, n-gons green, as render-wire colours them; pixels within about
-// half a pixel of a polygon edge darkened, so the density of a LOD shows. size must be in [1, 4096].
+// half a pixel of a polygon edge darkened where the triangle covers at least 6 square pixels (denser edges would
+// hide the shading), so coarse LODs show their wireframe. size must be in [1, 4096].
 Image render_picture(const Mesh& mesh, const PictureFrame& frame, int size);
 
 // The image as PNG bytes (8-bit RGB, no metadata): identical bytes for identical images.
