@@ -177,7 +177,7 @@ void print_summary(const batch::RunResult& r) {
     html.replace_extension(".html");
     std::printf("  report: %s, %s\n", r.report_path.string().c_str(), html.string().c_str());
   }
-  if (r.pictured_assets > 0 || r.stages.pictures > 0) {
+  if (r.pictured_assets > 0) {
     const batch::StageSeconds& st = r.stages;
     const double work = st.fingerprint + st.load + st.analyse + st.lods + st.post_process + st.measure + st.write;
     std::printf("  pictures: %zu asset(s) drawn (%s/), %.2f s, %.1f%% of the assets' work of %.2f s\n",
@@ -409,7 +409,7 @@ void register_run(CLI::App& app) {
       "Build the LOD chains of every asset of a library as a config says (incremental, parallel).\n"
       "Writes OUT_DIR/<same folders>/..., OUT_DIR/report.json and report.html, OUT_DIR/lods.json (per asset and\n"
       "LOD: file, triangles, error, switch points for Unreal, Unity and Godot; docs/lods-json.md),\n"
-      "OUT_DIR/.lodforge-cache/.");
+      "OUT_DIR/report_files/ (a picture of each LOD for report.html; --report-pictures), OUT_DIR/.lodforge-cache/.");
   cmd->add_option("--config", a->config, "batch config (JSON; see configs/schema.json)")->required();
   cmd->add_option("--input", a->input, "library folder (searched recursively)")->required();
   cmd->add_option("--output", a->output, "output folder (created)")->required();
