@@ -120,6 +120,19 @@ void append_escaped(std::string& out, std::string_view s) {
   }
 }
 
+// Whether `s` is valid UTF-8 without control characters: text that reaches the page unchanged.
+bool clean_text(std::string_view s) {
+  for (std::size_t i = 0; i < s.size();) {
+    const auto b = static_cast<unsigned char>(s[i]);
+    const std::size_t length = utf8_sequence_length(s, i);
+    if (length == 0 || b < 0x20 || b == 0x7F || (length == 2 && b == 0xC2 && static_cast<unsigned char>(s[i + 1]) <= 0x9F)) {
+      return false;
+    }
+    i += length;
+  }
+  return true;
+}
+
 std::string escaped(std::string_view s) {
   std::string out;
   out.reserve(s.size());
@@ -315,8 +328,9 @@ std::vector<Asset> read_assets(const json& report) {
     a.input_triangles = number(member(j, "input"), "triangles");
     a.input_bytes = number(member(j, "input"), "bytes");
     a.output_bytes = number(j, "output_bytes");
-    // Pictures are listed only under the names the page derives from the path, so it can never link elsewhere.
-    if (const json& pictures = member(j, "pictures"); pictures.is_array() && a.path) {
+    // Pictures are listed only under the names the page derives from the path (which must reach the page
+    // unchanged), so it can never link elsewhere.
+    if (const json& pictures = member(j, "pictures"); pictures.is_array() && a.path && clean_text(*a.path)) {
       while (a.pictures < pictures.size() && pictures[a.pictures].is_string() &&
              pictures[a.pictures].get<std::string>() == picture_file_name(*a.path, a.pictures)) {
         ++a.pictures;
