@@ -328,6 +328,12 @@ constexpr EnumName<symmetry::PlaneMode> kSymmetryPlaneNames[] = {
     {"none", symmetry::PlaneMode::none},
 };
 
+constexpr EnumName<ReportPictures> kReportPicturesNames[] = {
+    {"auto", ReportPictures::automatic},
+    {"on", ReportPictures::on},
+    {"off", ReportPictures::off},
+};
+
 constexpr EnumName<GltfLods> kGltfLodsNames[] = {
     {"msft_lod", GltfLods::msft_lod},
     {"files", GltfLods::files},
@@ -555,6 +561,15 @@ const std::vector<Field<RunLimits>>& limit_fields() {
   return fields;
 }
 
+// Report options: `defaults` only, and no part of the cache key.
+const std::vector<Field<ReportOptions>>& report_fields() {
+  using B = FieldsOf<ReportOptions>;
+  static const std::vector<Field<ReportOptions>> fields = {
+      B::choice("report_pictures", &ReportOptions::pictures, kReportPicturesNames),
+  };
+  return fields;
+}
+
 constexpr std::string_view kRootKeys[] = {"$schema", "version", "description", "defaults", "default_class", "classes"};
 constexpr std::string_view kClassKeys[] = {"name", "description", "match", "options", "lods"};
 constexpr std::string_view kTargetKeys[] = {"ratio", "triangles", "max_error", "screen_size"};
@@ -580,6 +595,7 @@ std::vector<std::string_view> defaults_keys() {
   std::vector<std::string_view> keys = option_keys();
   append_keys(keys, output_fields());
   append_keys(keys, limit_fields());
+  append_keys(keys, report_fields());
   keys.push_back("lod_switch");
   return keys;
 }
@@ -907,6 +923,7 @@ BatchConfig read_document(const Json& doc, Problems& problems) {
       apply_fields(*defaults, "defaults", asset_option_fields(), config.defaults, problems);
       apply_fields(*defaults, "defaults", output_fields(), config.output, problems);
       apply_fields(*defaults, "defaults", limit_fields(), config.limits, problems);
+      apply_fields(*defaults, "defaults", report_fields(), config.report, problems);
       if (const Json* sw = find(*defaults, "lod_switch"); sw && expect_object(*sw, "defaults.lod_switch", problems)) {
         std::vector<std::string_view> keys;
         append_keys(keys, lod_switch_fields());
@@ -1143,6 +1160,7 @@ nlohmann::json effective_config_json(const BatchConfig& config) {
   Json defaults = class_options_json(config.defaults);
   defaults.update(write_fields(output_fields(), config.output));
   defaults.update(write_fields(limit_fields(), config.limits));
+  defaults.update(write_fields(report_fields(), config.report));
   defaults["lod_switch"] = write_fields(lod_switch_fields(), config.lod_switch);
   Json out = {{"version", config.version}, {"defaults", std::move(defaults)}};
   if (!config.description.empty()) out["description"] = config.description;

@@ -23,6 +23,8 @@
 #include <utility>
 #include <vector>
 
+#include "lodforge/batch/runner.hpp"
+
 namespace lodforge::batch {
 namespace {
 
@@ -116,6 +118,19 @@ void append_escaped(std::string& out, std::string_view s) {
     out.append(s.substr(i, length));
     i += length;
   }
+}
+
+// Whether `s` is valid UTF-8 without control characters: text that reaches the page unchanged.
+bool clean_text(std::string_view s) {
+  for (std::size_t i = 0; i < s.size();) {
+    const auto b = static_cast<unsigned char>(s[i]);
+    const std::size_t length = utf8_sequence_length(s, i);
+    if (length == 0 || b < 0x20 || b == 0x7F || (length == 2 && b == 0xC2 && static_cast<unsigned char>(s[i + 1]) <= 0x9F)) {
+      return false;
+    }
+    i += length;
+  }
+  return true;
 }
 
 std::string escaped(std::string_view s) {
@@ -252,6 +267,7 @@ struct Asset {
   std::optional<double> input_triangles;
   std::optional<double> input_bytes;   // the source's mesh data on disk
   std::optional<double> output_bytes;  // everything written for the asset
+  std::size_t pictures = 0;            // LOD pictures beside the report, source first (picture_file_name)
   bool missed() const {
     return std::any_of(lods.begin(), lods.end(), [](const Lod& l) { return l.missed(); });
   }
@@ -312,6 +328,15 @@ std::vector<Asset> read_assets(const json& report) {
     a.input_triangles = number(member(j, "input"), "triangles");
     a.input_bytes = number(member(j, "input"), "bytes");
     a.output_bytes = number(j, "output_bytes");
+    // Pictures are listed only under the names the page derives from the path (which must reach the page
+    // unchanged), so it can never link elsewhere.
+    if (const json& pictures = member(j, "pictures"); pictures.is_array() && a.path && clean_text(*a.path)) {
+      while (a.pictures < pictures.size() && pictures[a.pictures].is_string() &&
+             pictures[a.pictures].get<std::string>() == picture_file_name(*a.path, a.pictures)) {
+        ++a.pictures;
+      }
+      if (a.pictures < pictures.size()) a.pictures = 0;
+    }
     const json& lods = member(j, "lods");
     if (lods.is_array()) {
       for (const json& l : lods) {
@@ -530,6 +555,7 @@ void render_data(std::string& out, const std::vector<const Asset*>& order) {
   column(out, "ib", order, [](std::string& o, const Asset* a) { append_number(o, a->input_bytes); });
   column(out, "ob", order, [](std::string& o, const Asset* a) { append_number(o, a->output_bytes); });
   column(out, "nl", order, [](std::string& o, const Asset* a) { o += std::to_string(a->lods.size()); });
+  column(out, "pic", order, [](std::string& o, const Asset* a) { o += std::to_string(a->pictures); });
   // Errors of assets that did not finish: sparse, most assets have none.
   out += "\"err\":{";
   bool first = true;
@@ -569,6 +595,8 @@ void render_data(std::string& out, const std::vector<const Asset*>& order) {
   stops.append(out);
   out += ",\n\"reasons\":";
   reasons.append(out);
+  out += ",\n\"picdir\":";
+  append_json_string(out, std::string(kPictureFolder) + "/");
   // One pair of axes for every plot: the whole report's triangle and error ranges.
   out += ",\n\"axes\":{\"tri\":[";
   append_number(out, triangles.lo);
@@ -644,6 +672,11 @@ svg.chain polyline.haus { stroke: #e15759; }
 svg.chain polyline.mean { stroke: #4e79a7; stroke-dasharray: 4 3; }
 svg.chain circle.haus { fill: #e15759; }
 svg.chain circle.mean { fill: #4e79a7; }
+.pics { display: flex; gap: 8px; flex-wrap: wrap; }
+.pics img { display: block; width: 160px; height: 160px; border: 1px solid var(--line); background: #fff; }
+.pics figcaption { font-weight: normal; font-size: 12px; color: var(--muted); }
+#overview-legend .key { margin-right: 14px; white-space: nowrap; }
+canvas.overview { display: block; border: 1px solid var(--line); background: #fff; }
 .muted { color: var(--muted); }
 pre { background: var(--head); padding: 8px 12px; overflow-x: auto; font-size: 12px; }
 )css";
@@ -840,7 +873,25 @@ constexpr std::string_view kScript = R"js(
         '</td><td class="num">' + num(D.h[k], 4) + '</td><td class="num">' + num(D.sc[k], 4) +
         "</td><td>" + (D.stop[k] < 0 ? DASH : esc(D.stops[D.stop[k]])) + "</td><td>" + bud + "</td></tr>";
     }
-    return '<div class="detail">' + plot(a) + s + "</tbody></table></div>";
+    return '<div class="detail">' + plot(a) + s + "</tbody></table></div>" +
+      (D.pic[a] ? '<div class="pics" data-pics="' + a + '"></div>' : "");
+  }
+  // The LOD pictures beside the report (report_files/<asset path>/lodK.png), made as elements rather than markup
+  // so that every URL goes through encodeURIComponent; loaded lazily, when the row is open and in view.
+  function pictures() {
+    Array.prototype.forEach.call(body.querySelectorAll("div.pics"), function (box) {
+      var a = Number(box.getAttribute("data-pics")), base = D.picdir + path(a).split("/").map(encodeURIComponent).join("/");
+      for (var k = 0; k < D.pic[a]; k++) {
+        var fig = document.createElement("figure"), img = document.createElement("img"), cap = document.createElement("figcaption");
+        img.loading = "lazy";
+        img.width = img.height = 160;
+        img.alt = k ? "LOD " + k : "source";
+        img.src = base + "/lod" + k + ".png";
+        var tris = k ? D.tri[off[a] + k - 1] : D.itri[a];
+        cap.textContent = (k ? "LOD " + k : "source") + " \u00b7 " + count(tris) + " tris";
+        fig.appendChild(img); fig.appendChild(cap); box.appendChild(fig);
+      }
+    });
   }
   function render() {
     var pages = Math.max(1, Math.ceil(view.length / PAGE));
@@ -857,6 +908,7 @@ constexpr std::string_view kScript = R"js(
       if (open) html.push('<tr class="expanded"><td></td><td colspan="' + COLS.length + '">' + detail(a) + "</td></tr>");
     }
     body.innerHTML = html.join("");
+    pictures();
     info.textContent = view.length + " of " + n + " assets";
     pageInfo.textContent = "page " + (state.page + 1) + " of " + pages;
     Array.prototype.forEach.call(head.cells, function (th, c) {
@@ -865,6 +917,64 @@ constexpr std::string_view kScript = R"js(
       else th.removeAttribute("aria-sort");
     });
   }
+  // Per class: every LOD of every asset, Hausdorff error against triangles, on the axes of the asset plots (one
+  // scale for all classes); a canvas, drawn when the section is first opened, since 100 000 assets are 300 000
+  // points. Errors of zero sit on their own row below the lowest decade.
+  var LEVEL_COLOURS = ["#4e79a7", "#f28e2b", "#59a14f", "#e15759", "#b07aa1", "#76b7b2"];
+  function overview() {
+    var box = document.getElementById("overview-plots"), C = D.classes.length, by = [], a, k, c;
+    for (c = 0; c <= C; c++) by.push([]);
+    for (a = 0; a < n; a++) {
+      c = D.cls[a] < 0 ? C : D.cls[a];
+      for (k = off[a]; k < off[a + 1]; k++) if (D.tri[k] > 0 && D.h[k] !== null) by[c].push(k);
+    }
+    var OW = 2 * W, OH = 2 * H, ratio = window.devicePixelRatio || 1;
+    function ox(v) { return 2 * sx(v); }
+    function oy(v) { return 2 * sy(v); }
+    for (c = 0; c <= C; c++) {
+      if (!by[c].length) continue;
+      var fig = document.createElement("figure"), cap = document.createElement("figcaption"), cv = document.createElement("canvas");
+      cap.textContent = (c < C ? D.classes[c] : "(no class)") + " \u00b7 " + by[c].length + " LODs";
+      cv.className = "overview";
+      cv.width = OW * ratio; cv.height = OH * ratio; cv.style.width = OW + "px"; cv.style.height = OH + "px";
+      cv.setAttribute("data-points", String(by[c].length));
+      cv.setAttribute("role", "img");
+      cv.setAttribute("aria-label", "Hausdorff error against triangles of every LOD of class " + cap.textContent);
+      var g = cv.getContext("2d"), e;
+      g.scale(ratio, ratio);
+      g.font = "11px system-ui, sans-serif"; g.fillStyle = "#1d1f23"; g.strokeStyle = "#e6e9ee";
+      g.textAlign = "center";
+      var step = Math.max(1, Math.ceil((XD[1] - XD[0]) / 6));
+      for (e = XD[0]; e <= XD[1]; e += step) {
+        g.beginPath(); g.moveTo(ox(Math.pow(10, e)), 2 * YTOP); g.lineTo(ox(Math.pow(10, e)), 2 * ZERO); g.stroke();
+        g.fillText(label(e), ox(Math.pow(10, e)), OH - 2 * B + 24);
+      }
+      g.fillText("triangles", OW / 2, OH - 8);
+      g.textAlign = "right";
+      step = Math.max(1, Math.ceil((YD[1] - YD[0]) / 5));
+      for (e = YD[0]; e <= YD[1]; e += step) {
+        g.beginPath(); g.moveTo(2 * L, oy(Math.pow(10, e))); g.lineTo(OW - 2 * R, oy(Math.pow(10, e))); g.stroke();
+        g.fillText(label(e), 2 * L - 6, oy(Math.pow(10, e)) + 4);
+      }
+      g.fillText("0", 2 * L - 6, 2 * ZERO + 4);
+      g.save(); g.translate(12, OH / 2); g.rotate(-Math.PI / 2); g.textAlign = "center";
+      g.fillText("Hausdorff % of diagonal", 0, 0); g.restore();
+      by[c].forEach(function (k) {
+        g.fillStyle = LEVEL_COLOURS[Math.min(Math.max((D.lv[k] || 1) - 1, 0), LEVEL_COLOURS.length - 1)];
+        g.fillRect(ox(D.tri[k]) - 2, oy(D.h[k]) - 2, 4, 4);
+      });
+      fig.appendChild(cap); fig.appendChild(cv); box.appendChild(fig);
+    }
+    var legend = document.getElementById("overview-legend");
+    if (legend) legend.innerHTML = LEVEL_COLOURS.map(function (col, i) {
+      return '<span class="key"><b style="color:' + col + '">\u25a0</b> LOD ' + (i + 1) +
+        (i === LEVEL_COLOURS.length - 1 ? "+" : "") + "</span>";
+    }).join("");
+  }
+  var ov = document.getElementById("overview");
+  if (ov) ov.addEventListener("toggle", function () {
+    if (ov.open && !ov.hasAttribute("data-drawn")) { ov.setAttribute("data-drawn", ""); overview(); }
+  });
   function update() { filter(); render(); }
   body.addEventListener("click", function (e) {
     var b = e.target.closest("button.toggle");
@@ -1269,7 +1379,7 @@ std::string render_report_html(const nlohmann::json& report) {
   // Self-contained by construction, and enforced: the browser refuses any load the page did not inline.
   out +=
       "<meta http-equiv=\"Content-Security-Policy\" content=\"default-src 'none'; style-src 'unsafe-inline'; "
-      "script-src 'unsafe-inline'; img-src data:\">\n";
+      "script-src 'unsafe-inline'; img-src data: 'self' file:\">\n";
   out += "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n<title>lodforge report";
   if (const std::optional<std::string> config_file = text(report, "config_file")) {
     out += " \xE2\x80\x94 ";
@@ -1286,6 +1396,10 @@ std::string render_report_html(const nlohmann::json& report) {
   } else {
     render_failures(out, assets);
     render_assets(out, assets, order);
+    out += "<section id=\"overview-section\">\n<h2>Error against triangles by class</h2>\n<details id=\"overview\">"
+           "<summary>Every LOD of every asset, one plot per class, on the axes of the asset plots</summary>\n"
+           "<p class=\"meta\" id=\"overview-legend\"></p><div class=\"plots\" id=\"overview-plots\"></div>\n"
+           "</details>\n</section>\n";
     out += "<section id=\"plots\">\n<h2>Worst assets</h2>\n<div class=\"plots\">\n";
     render_worst_assets(out, assets);
     out += "</div>\n</section>\n";

@@ -1,8 +1,12 @@
 // The batch runner: a oneTBB flow graph over the assets of a library.
 //
-//   admission ─► fingerprint ─► load ─► analyse ─► lods ─► post_process ─► measure ─► write ─► report (serial)
-//       ▲                                                                                        │
-//       └──────────────────────── the finished asset's memory goes back to the budget ──────────┘
+//   admission ─► fingerprint ─► load ─► analyse ─► lods ─► post_process ─┬► measure ─► write ─┬► gather ─► report
+//       ▲                                                                   └──► pictures ───────┘    (serial) │
+//       └──────────────────────── the finished asset's memory goes back to the budget ─────────────────────────┘
+//
+// The report's pictures of the LODs are drawn beside measure and write (they read the same meshes, and write
+// nothing of the Job's but their own fields); gather passes a job on when both branches are done with it, and
+// publishes the pictures of an asset that succeeded.
 //
 // Every stage is a function_node over a shared Job. A stage that throws marks its Job finished (failed) and
 // the later stages pass it through untouched, so one bad asset never stops the graph. Admission is a small
@@ -51,6 +55,7 @@
 #include "lodforge/io/asset.hpp"
 #include "lodforge/io/file.hpp"
 #include "lodforge/io/lods.hpp"
+#include "lodforge/io/picture.hpp"
 #include "lodforge/quad/quad_stats.hpp"
 #include "lodforge/simplify/simplify.hpp"
 #include "lodforge/symmetry/symmetry.hpp"
@@ -310,6 +315,13 @@ struct Job {
   std::vector<std::vector<Mesh>> levels;                 // [level][mesh], post-processed
   std::vector<double> coverage;                          // MSFT_screencoverage, levels + 1 values
   std::vector<bool> shows_previous;                      // per level: a near-copy of the one before, not stored
+
+  // The report's pictures (PNG bytes, the source first, then each level). Only the picture branch touches
+  // them, and only until both branches after post-process have arrived at gather.
+  bool picture_wanted = false;
+  std::vector<std::string> picture_png;
+  std::string picture_error;
+  std::atomic<int> arrivals{2};  // branches after post-process still running; the last one passes the job on
 
   // RunLimits::asset_timeout_s after the first stage started; none without a limit.
   std::optional<Clock::time_point> deadline;
@@ -785,6 +797,100 @@ class Pipeline {
     job.processed_triangles = job.triangles;
   }
 
+  bool wants_pictures(const Job& job) const {
+    if (!options_.write_report) return false;  // pictures go beside the report
+    switch (config_.report.pictures) {
+      case ReportPictures::on:
+        return true;
+      case ReportPictures::off:
+        return false;
+      case ReportPictures::automatic: {
+        std::size_t rendered = job.triangles;
+        for (std::size_t k = 0; k < job.levels.size(); ++k) {
+          for (const Mesh& m : job.levels[k]) rendered += job.shows_previous[k] ? 0 : m.triangle_count();
+        }
+        return pictures_pay(job.triangles, rendered, job.levels.size() + 1);
+      }
+    }
+    return false;
+  }
+
+  // The source and each level in world space, all in the source's frame so they share one scale. Never throws:
+  // a picture that cannot be drawn costs the asset its pictures (and a warning), nothing else.
+  static void pictures(Job& job) {
+    try {
+      io::Asset placed = with_meshes(job.asset, job.sources);
+      const Mesh source = io::world_surface(placed);
+      const io::PictureFrame frame = io::frame_mesh(source, *io::find_picture_view("iso"));
+      job.picture_png.push_back(io::encode_png(io::render_picture(source, frame, kPictureSize)));
+      for (std::size_t k = 0; k < job.levels.size(); ++k) {
+        if (job.deadline && Clock::now() > *job.deadline) {  // the asset fails anyway
+          job.picture_png.clear();
+          return;
+        }
+        if (job.shows_previous[k]) {  // the same meshes as the level before
+          job.picture_png.push_back(std::string(job.picture_png.back()));
+          continue;
+        }
+        placed.meshes = job.levels[k];
+        job.picture_png.push_back(io::encode_png(io::render_picture(io::world_surface(placed), frame, kPictureSize)));
+      }
+    } catch (const std::exception& e) {
+      job.picture_png.clear();
+      job.picture_error = e.what();
+    } catch (...) {
+      job.picture_png.clear();
+      job.picture_error = "unknown error";
+    }
+  }
+
+  // Once both branches are done: an asset rebuilt this run gets its new pictures published (each file written
+  // to a temporary name and renamed) and listed in its record, or, without any, loses the old ones, which would
+  // show LODs it no longer has. A cache hit lists the pictures an earlier run drew for the same outputs; a failed
+  // asset keeps those of its last good run, as it keeps its outputs. Never fails the asset.
+  void finish_pictures(Job& job) const {
+    const auto t0 = Clock::now();
+    const bool ok = job.record["status"] == "ok", hit = job.record["cache_hit"] == true;
+    const fs::path folder = options_.output_dir / kPictureFolder / fs::path(job.path);
+    std::vector<std::string> names;
+    std::error_code ec;
+    if (!ok || !options_.write_report) {
+      // nothing to change
+    } else if (hit) {
+      const std::size_t n = job.record["lods"].size() + 1;
+      for (std::size_t k = 0; k < n && config_.report.pictures != ReportPictures::off; ++k) {
+        names.push_back(picture_file_name(job.path, k));
+        if (!fs::is_regular_file(options_.output_dir / names.back(), ec)) {
+          names.clear();
+          break;
+        }
+      }
+    } else if (!job.picture_png.empty()) {
+      try {
+        for (std::size_t k = 0; k < job.picture_png.size(); ++k) {
+          names.push_back(picture_file_name(job.path, k));
+          fs::create_directories(folder, ec);
+          io::write_file_atomic(options_.output_dir / names.back(), job.picture_png[k], io::Durability::none);
+        }
+        // Levels the asset no longer has.
+        for (std::size_t k = job.picture_png.size();; ++k) {
+          if (!fs::remove(options_.output_dir / picture_file_name(job.path, k), ec)) break;
+        }
+      } catch (const std::exception& e) {
+        names.clear();
+        fs::remove_all(folder, ec);
+        job.record["warnings"].push_back(std::string("no pictures: ") + e.what());
+      }
+    } else {
+      fs::remove_all(folder, ec);
+      if (!job.picture_error.empty()) job.record["warnings"].push_back("no pictures: " + job.picture_error);
+    }
+    if (!names.empty()) job.record["pictures"] = names;
+    job.picture_png.clear();
+    job.picture_png.shrink_to_fit();
+    job.stages.pictures += seconds_since(t0);
+  }
+
  private:
   void write_outputs(Job& job, const fs::path& staging) {
     const fs::path name = fs::path(job.path).filename();
@@ -1015,6 +1121,21 @@ std::uint64_t parse_byte_size(std::string_view text) {
   return static_cast<std::uint64_t>(value * double(unit));
 }
 
+std::string picture_file_name(const std::string& relative_path, std::size_t level) {
+  return std::string(kPictureFolder) + "/" + relative_path + "/lod" + std::to_string(level) + ".png";
+}
+
+// Costs in the time an asset's processing (load, simplify, evaluate, write) spends per input triangle, measured
+// with `lodforge run` over the corpus (docs/report.md): processing costs about kWorkFixed + 1 per triangle; a
+// picture about kPictureFixed (clearing, encoding and writing the PNG) plus kPicturePerTriangle per triangle
+// drawn. Rounded up, so that the rule errs towards no pictures.
+constexpr double kWorkFixed = 400, kPictureFixed = 100, kPicturePerTriangle = 0.01, kPictureShare = 0.05;
+
+bool pictures_pay(std::size_t input_triangles, std::size_t rendered_triangles, std::size_t pictures) {
+  const double cost = kPictureFixed * double(pictures) + kPicturePerTriangle * double(rendered_triangles);
+  return cost <= kPictureShare * (kWorkFixed + double(input_triangles));
+}
+
 std::string lod_file_name(const fs::path& relative_path, std::size_t level) {
   return relative_path.stem().string() + "_LOD" + std::to_string(level) + relative_path.extension().string();
 }
@@ -1153,7 +1274,9 @@ std::vector<std::string> stale_outputs(const fs::path& output_dir, const fs::pat
     std::error_code type_ec;
     if (it->is_directory(type_ec)) {
       // A library inside the output folder holds the inputs, never outputs.
-      if (it->path().filename() == kCacheFolder || fs::equivalent(it->path(), input_dir, type_ec)) {
+      // Nor do the cache and the report's pictures (the files of the assets' last good runs).
+      if (it->path().filename() == kCacheFolder || (it.depth() == 0 && it->path().filename() == kPictureFolder) ||
+          fs::equivalent(it->path(), input_dir, type_ec)) {
         it.disable_recursion_pending();
       }
       continue;
@@ -1295,9 +1418,32 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
     auto load = make(&Pipeline::load, &StageSeconds::load, "load");
     auto analyse = make(&Pipeline::analyse, &StageSeconds::analyse, "analyse");
     auto lods = make(&Pipeline::lods, &StageSeconds::lods, "simplify");
-    auto post = make(&Pipeline::post_process, &StageSeconds::post_process, "post-process");
+    // After post-process the job goes to two branches at once: whether it gets pictures is settled here, before
+    // either branch can change it.
+    auto post = std::make_unique<Node>(
+        g, flow::unlimited,
+        [&pipeline, body = stage([&pipeline](Job& j) { pipeline.post_process(j); }, &StageSeconds::post_process,
+                                 "post-process", timeout_s, options)](JobPtr job) {
+          job = body(std::move(job));
+          job->picture_wanted = !job->finished && pipeline.wants_pictures(*job);
+          return job;
+        });
     auto measure = make(&Pipeline::measure, &StageSeconds::measure, "evaluate");
     auto write = make(&Pipeline::write, &StageSeconds::write, "write");
+    Node pictures(g, flow::unlimited, [](JobPtr job) {
+      if (job->picture_wanted) {
+        const auto t = Clock::now();
+        Pipeline::pictures(*job);
+        job->stages.pictures += seconds_since(t);
+      }
+      return job;
+    });
+    using Gather = flow::multifunction_node<JobPtr, std::tuple<JobPtr>>;
+    Gather gather(g, flow::unlimited, [&pipeline](const JobPtr& job, Gather::output_ports_type& ports) {
+      if (job->arrivals.fetch_sub(1, std::memory_order_acq_rel) != 1) return;
+      pipeline.finish_pictures(*job);
+      std::get<0>(ports).try_put(job);
+    });
 
     auto start = [&](const std::vector<Pending>& batch) {
       for (const Pending& p : batch) {
@@ -1315,11 +1461,13 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
     flow::function_node<JobPtr, flow::continue_msg> report(g, flow::serial, [&](const JobPtr& job) {
       // This run's work on the asset (also for a cache hit: its lookup), not the time it waited for a thread.
       job->record["seconds"] = work_seconds(job->stages);
+      result.pictured_assets += job->record.contains("pictures") && job->record["cache_hit"] == false;
       records[job->index] = std::move(job->record);
       const StageSeconds& s = job->stages;
       StageSeconds& total = result.stages;
       total.fingerprint += s.fingerprint, total.load += s.load, total.analyse += s.analyse, total.lods += s.lods;
       total.post_process += s.post_process, total.measure += s.measure, total.write += s.write;
+      total.pictures += s.pictures;
       triangles_done += job->processed_triangles;
       ++done;
       // Free the asset's meshes before more assets are admitted against its budget.
@@ -1350,8 +1498,11 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
     flow::make_edge(*analyse, *lods);
     flow::make_edge(*lods, *post);
     flow::make_edge(*post, *measure);
+    flow::make_edge(*post, pictures);
     flow::make_edge(*measure, *write);
-    flow::make_edge(*write, report);
+    flow::make_edge(*write, gather);
+    flow::make_edge(pictures, gather);
+    flow::make_edge(flow::output_port<0>(gather), report);
     start(admission.take());
     g.wait_for_all();
   });

@@ -2,9 +2,11 @@
 // as quads, triangles tinted) without a 3D viewer. Orthographic projection along one of a few fixed views;
 // faces turned away from the viewer are culled (or drawn dimmed); the rest are painted far to near, so nearer
 // faces hide the edges behind them (painter's algorithm: exact enough for closed, mostly convex shapes).
+// `OUT.png` gives the z-buffered picture the batch report shows for each LOD (io/picture.hpp), same views.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
@@ -13,23 +15,12 @@
 #include "lodforge/core/mesh.hpp"
 #include "lodforge/io/asset.hpp"
 #include "lodforge/io/file.hpp"
+#include "lodforge/io/picture.hpp"
 
 namespace lodforge::cli {
 namespace {
 
-struct View {
-  const char* name;
-  Vec3d forward;  // from the viewer into the scene
-  Vec3d up;
-};
-
-// Y is up in OBJ, glTF and most game assets.
-constexpr View kViews[] = {
-    {"front", {{0, 0, -1}}, {{0, 1, 0}}}, {"back", {{0, 0, 1}}, {{0, 1, 0}}},
-    {"left", {{1, 0, 0}}, {{0, 1, 0}}},   {"right", {{-1, 0, 0}}, {{0, 1, 0}}},
-    {"top", {{0, -1, 0}}, {{0, 0, -1}}},  {"bottom", {{0, 1, 0}}, {{0, 0, 1}}},
-    {"iso", {{-1, -1, -1}}, {{0, 1, 0}}},
-};
+using View = io::PictureView;
 
 Vec3d normalized(const Vec3d& v) {
   const double l = length(v);
@@ -129,17 +120,16 @@ void register_render_wire(CLI::App& app) {
   };
   auto a = std::make_shared<Args>();
   CLI::App* cmd = app.add_subcommand(
-      "render-wire", "Write an SVG wireframe of an asset (orthographic; quads drawn as quads, triangles tinted).");
+      "render-wire",
+      "Write an SVG wireframe of an asset (orthographic; quads drawn as quads, triangles tinted), or with OUT.png "
+      "the shaded picture the batch report shows.");
   cmd->add_option("input", a->in, "input asset")->required();
-  cmd->add_option("output", a->out, "output .svg (written atomically)")->required();
+  cmd->add_option("output", a->out, "output .svg or .png (written atomically)")->required();
   cmd->add_option("--view", a->view, "front | back | left | right | top | bottom | iso")->default_val("front");
   cmd->add_option("--size", a->size, "largest side of the picture, in pixels")->default_val(800);
   cmd->add_flag("--dim-back", a->dim_back, "draw faces turned away from the viewer dimmed instead of culling them");
   cmd->callback([a] {
-    const View* view = nullptr;
-    for (const View& v : kViews) {
-      if (a->view == v.name) view = &v;
-    }
+    const View* view = io::find_picture_view(a->view);
     if (!view) {
       std::fprintf(stderr, "error: --view: unknown view '%s' (front | back | left | right | top | bottom | iso)\n",
                    a->view.c_str());
@@ -152,10 +142,22 @@ void register_render_wire(CLI::App& app) {
       return;
     }
     try {
+      const bool png = std::filesystem::path(a->out).extension() == ".png";
+      if (png && a->size > 4096) {
+        std::fprintf(stderr, "error: --size must be in [16, 4096] for a .png, got %d\n", a->size);
+        set_exit_code(2);
+        return;
+      }
       const io::Asset asset = io::load_asset(a->in);
-      const std::string svg = render_svg(asset.meshes, *view, a->size, a->dim_back);
-      io::write_file_atomic(a->out, svg);
-      std::printf("wrote %s (%zu bytes)\n", a->out.c_str(), svg.size());
+      std::string bytes;
+      if (png) {
+        const Mesh world = io::world_surface(asset);
+        bytes = io::encode_png(io::render_picture(world, io::frame_mesh(world, *view), a->size));
+      } else {
+        bytes = render_svg(asset.meshes, *view, a->size, a->dim_back);
+      }
+      io::write_file_atomic(a->out, bytes);
+      std::printf("wrote %s (%zu bytes)\n", a->out.c_str(), bytes.size());
     } catch (const io::IoError& e) {
       std::fprintf(stderr, "error: %s\n", e.what());
       set_exit_code(2);

@@ -132,7 +132,21 @@ struct RunArgs {
   bool dry_run = false;
   bool prune = false;
   double asset_timeout_s = -1;  // < 0: the config's defaults.asset_timeout_s
+  std::string report_pictures;  // auto | on | off; empty: the config's defaults.report_pictures
 };
+
+void apply_report_pictures(batch::BatchConfig& config, const std::string& mode) {
+  if (mode == "auto") config.report.pictures = batch::ReportPictures::automatic;
+  if (mode == "on") config.report.pictures = batch::ReportPictures::on;
+  if (mode == "off") config.report.pictures = batch::ReportPictures::off;
+}
+
+void add_report_pictures_option(CLI::App* cmd, RunArgs& a) {
+  cmd->add_option("--report-pictures", a.report_pictures,
+                  "a picture of each LOD beside report.html: auto (where it costs little next to the asset's own "
+                  "work), on, off (default: the config's defaults.report_pictures, else auto)")
+      ->check(CLI::IsMember({"auto", "on", "off"}));
+}
 
 // Config and options shared by `run` and `bench`; prints the problem and returns nullopt on a usage error.
 std::optional<batch::BatchConfig> load_config_or_report(const std::string& file) {
@@ -162,6 +176,13 @@ void print_summary(const batch::RunResult& r) {
     fs::path html = r.report_path;
     html.replace_extension(".html");
     std::printf("  report: %s, %s\n", r.report_path.string().c_str(), html.string().c_str());
+  }
+  if (r.pictured_assets > 0) {
+    const batch::StageSeconds& st = r.stages;
+    const double work = st.fingerprint + st.load + st.analyse + st.lods + st.post_process + st.measure + st.write;
+    std::printf("  pictures: %zu asset(s) drawn (%s/), %.2f s, %.1f%% of the assets' work of %.2f s\n",
+                r.pictured_assets, batch::kPictureFolder, st.pictures, work > 0 ? 100.0 * st.pictures / work : 0.0,
+                work);
   }
   const unsigned long long missed = s.value("lods_missed", 0ull);
   std::printf("  %llu of %llu LOD(s) met their budget, %llu missed%s\n", s["lods"].get<unsigned long long>() - missed,
@@ -234,6 +255,7 @@ void run_command(const RunArgs& a) {
   std::optional<batch::BatchConfig> config = load_config_or_report(a.config);
   if (!config) return set_exit_code(2);
   if (a.asset_timeout_s >= 0) config->limits.asset_timeout_s = a.asset_timeout_s;
+  apply_report_pictures(*config, a.report_pictures);
   batch::RunOptions options{
       .config_file = a.config, .input_dir = a.input, .output_dir = a.output, .jobs = a.jobs, .force = a.force};
   options.prune = a.prune;
@@ -326,8 +348,9 @@ void run_command(const RunArgs& a) {
 }
 
 void bench_command(const RunArgs& a, unsigned max_jobs) {
-  const std::optional<batch::BatchConfig> config = load_config_or_report(a.config);
+  std::optional<batch::BatchConfig> config = load_config_or_report(a.config);
   if (!config) return set_exit_code(2);
+  apply_report_pictures(*config, a.report_pictures);
   std::error_code ec;
   if (!fs::is_directory(a.input, ec)) {
     std::fprintf(stderr, "error: %s: no such folder\n", a.input.c_str());
@@ -369,11 +392,11 @@ void bench_command(const RunArgs& a, unsigned max_jobs) {
   }
   fs::remove_all(temp, ec);
   std::printf("per-stage time, summed over assets (seconds; stages of different assets overlap):\n");
-  std::printf("%4s %11s %8s %8s %8s %12s %8s %8s\n", "jobs", "fingerprint", "load", "analyse", "lods", "post_process",
-              "measure", "write");
+  std::printf("%4s %11s %8s %8s %8s %12s %8s %8s %9s\n", "jobs", "fingerprint", "load", "analyse", "lods",
+              "post_process", "measure", "write", "pictures");
   for (const auto& [j, s] : stages) {
-    std::printf("%4u %11.2f %8.2f %8.2f %8.2f %12.2f %8.2f %8.2f\n", j, s.fingerprint, s.load, s.analyse, s.lods,
-                s.post_process, s.measure, s.write);
+    std::printf("%4u %11.2f %8.2f %8.2f %8.2f %12.2f %8.2f %8.2f %9.2f\n", j, s.fingerprint, s.load, s.analyse, s.lods,
+                s.post_process, s.measure, s.write, s.pictures);
   }
 }
 
@@ -386,7 +409,7 @@ void register_run(CLI::App& app) {
       "Build the LOD chains of every asset of a library as a config says (incremental, parallel).\n"
       "Writes OUT_DIR/<same folders>/..., OUT_DIR/report.json and report.html, OUT_DIR/lods.json (per asset and\n"
       "LOD: file, triangles, error, switch points for Unreal, Unity and Godot; docs/lods-json.md),\n"
-      "OUT_DIR/.lodforge-cache/.");
+      "OUT_DIR/report_files/ (a picture of each LOD for report.html; --report-pictures), OUT_DIR/.lodforge-cache/.");
   cmd->add_option("--config", a->config, "batch config (JSON; see configs/schema.json)")->required();
   cmd->add_option("--input", a->input, "library folder (searched recursively)")->required();
   cmd->add_option("--output", a->output, "output folder (created)")->required();
@@ -410,6 +433,7 @@ void register_run(CLI::App& app) {
                   "seconds one asset may run; a slower one fails with the stage it was in and the run goes on "
                   "(0 = no limit; default: the config's defaults.asset_timeout_s, else none)")
       ->check(CLI::NonNegativeNumber);
+  add_report_pictures_option(cmd, *a);
   cmd->callback([a] { run_command(*a); });
 }
 
@@ -511,6 +535,7 @@ void register_bench(CLI::App& app) {
   cmd->add_option("--config", a->config, "batch config (JSON)")->required();
   cmd->add_option("--input", a->input, "library folder")->required();
   cmd->add_option("--max-jobs", *max_jobs, "largest job count (default: all cores)")->default_val(0);
+  add_report_pictures_option(cmd, *a);
   cmd->callback([a, max_jobs] { bench_command(*a, *max_jobs); });
 }
 

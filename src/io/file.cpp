@@ -38,7 +38,7 @@ void check_output_path(const std::filesystem::path& path) {
   }
 }
 
-void write_file_atomic(const std::filesystem::path& path, std::string_view bytes) {
+void write_file_atomic(const std::filesystem::path& path, std::string_view bytes, Durability durability) {
   check_output_path(path);
   static std::atomic<unsigned> counter{0};
   const std::filesystem::path tmp =
@@ -47,7 +47,7 @@ void write_file_atomic(const std::filesystem::path& path, std::string_view bytes
   if (!f) throw IoError(path, std::string("cannot create a temporary file: ") + std::strerror(errno));
   bool ok = bytes.empty() || std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
   ok = (std::fflush(f) == 0) && ok;
-  ok = (::fsync(::fileno(f)) == 0) && ok;
+  if (durability == Durability::synced) ok = (::fsync(::fileno(f)) == 0) && ok;
   ok = (std::fclose(f) == 0) && ok;
   std::error_code ec;
   if (!ok) {

@@ -2,7 +2,8 @@
 //
 //   node tests/browser/report_page.mjs check REPORT.html SCREENSHOT.png
 //     opens the page, fails on any console error or page error, exercises search, class and status filters,
-//     sorting and row expansion, and writes a screenshot. Prints one line per check.
+//     sorting and row expansion (with the LOD pictures, which must load, when the report lists any) and the
+//     per-class overview, and writes a screenshot. Prints one line per check.
 //   node tests/browser/report_page.mjs bench REPORT.html [REPS]
 //     prints load, filter and sort times as JSON (best of REPS, default 3).
 //
@@ -178,7 +179,59 @@ try {
     check(!!expanded && expanded.lods === expanded.expected, "expanding a row lists its LODs");
     check(!!expanded && expanded.svg === 1 && expanded.line.split(" ").length >= 2,
       "the expanded row plots its chain (" + (expanded ? expanded.line : "") + ")");
-    await page.screenshot({ path: extra, captureBeyondViewport: false });
+    // Pictures: when the report lists any, expanding an asset that has them shows them, and every one loads.
+    const pictures = await page.evaluate(async () => {
+      const data = JSON.parse(document.getElementById("report-data").textContent);
+      const listed = data.pic.reduce((x, y) => x + y, 0);
+      if (!listed) return { listed };
+      const rank = data.pic.findIndex((p) => p > 0);
+      document.getElementById("q").value = data.name[rank];  // bring that asset's row onto the page
+      document.getElementById("q").dispatchEvent(new Event("input"));
+      const row = Array.from(document.querySelectorAll("#assets tbody tr[data-asset]"))
+        .find((r) => Number(r.getAttribute("data-asset")) === rank);
+      if (!row) return { listed, row: false };
+      if (row.querySelector("button.toggle").getAttribute("aria-expanded") !== "true") row.querySelector("button.toggle").click();
+      const imgs = () => Array.from(document.querySelectorAll("#assets tr.expanded div.pics img"));
+      if (imgs().length) imgs()[0].scrollIntoView({ block: "center" });
+      const t0 = performance.now();
+      while (performance.now() - t0 < 20000 && !imgs().every((i) => i.complete)) {
+        await new Promise((r) => setTimeout(r, 50));
+      }
+      return { listed, row: true, expected: data.pic[rank], shown: imgs().length,
+               loaded: imgs().filter((i) => i.complete && i.naturalWidth > 0 && i.naturalWidth <= 256).length,
+               src: imgs().length ? imgs()[0].getAttribute("src") : "" };
+    });
+    if (pictures.listed) {
+      check(pictures.row && pictures.shown === pictures.expected && pictures.loaded === pictures.expected,
+        "the expanded row shows its LOD pictures and they load (" + pictures.loaded + " of " + pictures.expected +
+        " loaded, " + pictures.src + ")");
+      await page.screenshot({ path: extra, captureBeyondViewport: false });  // the open row and its pictures
+      await timed(page, "search", "");
+    } else {
+      await page.screenshot({ path: extra, captureBeyondViewport: false });
+      console.log("note the report lists no LOD pictures");
+    }
+    // The per-class overview: opening it draws one canvas per class with LODs, every one with points.
+    const overview = await page.evaluate(async () => {
+      const d = document.getElementById("overview");
+      if (!d) return null;
+      d.open = true;
+      await new Promise((r) => requestAnimationFrame(() => setTimeout(r, 50)));
+      const data = JSON.parse(document.getElementById("report-data").textContent);
+      const classes = new Set();
+      let off = 0;
+      data.nl.forEach((nl, a) => {
+        for (let k = off; k < off + nl; k++) if (data.tri[k] > 0 && data.h[k] !== null) classes.add(data.cls[a]);
+        off += nl;
+      });
+      const canvases = Array.from(d.querySelectorAll("canvas.overview"));
+      return { expected: classes.size, canvases: canvases.length,
+               points: canvases.map((c) => Number(c.getAttribute("data-points"))) };
+    });
+    check(!!overview && overview.canvases === overview.expected && overview.points.every((p) => p > 0),
+      "the per-class overview draws every class (" + JSON.stringify(overview) + ")");
+    await page.evaluate(() => document.getElementById("overview").scrollIntoView());
+    await page.screenshot({ path: extra.replace(/\.png$/, "") + "-overview.png", captureBeyondViewport: false });
     check(errors.length === 0, "no console errors" + (errors.length ? ": " + errors.join(" | ") : ""));
   }
 } catch (e) {

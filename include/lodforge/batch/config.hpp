@@ -160,12 +160,23 @@ struct RunLimits {
   friend bool operator==(const RunLimits&, const RunLimits&) = default;
 };
 
+// A picture of each LOD beside report.html (report_files/<asset>/lodK.png, docs/report.md). `automatic`
+// ("auto") draws them for the assets whose pictures cost little next to their own processing.
+enum class ReportPictures { automatic, on, off };
+
+// What the report shows. In `defaults` only, and no part of the cache key (a report never changes a LOD).
+struct ReportOptions {
+  ReportPictures pictures = ReportPictures::automatic;  // `defaults.report_pictures`, `run --report-pictures`
+  friend bool operator==(const ReportOptions&, const ReportOptions&) = default;
+};
+
 struct BatchConfig {
   int version = kConfigVersion;
   std::string description;
   LodOptions defaults;  // built-in defaults < `defaults`
   OutputOptions output;
   RunLimits limits;
+  ReportOptions report;
   LodSwitch lod_switch;             // `defaults.lod_switch`
   std::vector<AssetClass> classes;  // in file order: the first class whose globs match wins
   std::string default_class;        // class of assets no glob matches; empty = such assets are skipped

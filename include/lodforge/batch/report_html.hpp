@@ -4,7 +4,8 @@
 //   write_file(out_dir / "report.html", render_report_html(report));
 //
 // The page is self-contained: inline CSS and script, no network (a Content-Security-Policy meta tag forbids every
-// external load, so a stray reference would show as blocked rather than phone home). It is sized for libraries
+// external load but the LOD pictures beside it, so a stray reference would show as blocked rather than phone
+// home). It is sized for libraries
 // of 100 000 assets: the table is not markup but compact columnar JSON in a <script type="application/json">
 // block (about 250 bytes per asset), drawn by the page 50 rows at a time. Sections, top to bottom:
 //   - header: lodforge version, config file, input and output folders, jobs, shard and the summary figures;
@@ -13,7 +14,10 @@
 //   - the assets table: one row per asset, failed first, then assets with a LOD that missed its budget, then by
 //     the largest measured Hausdorff distance; search, class and status filters; every column sorts; a row
 //     expands to its LODs and a plot of Hausdorff and mean error against triangles, the chain from the source
-//     connected, on log axes shared by every asset (zero errors on a row of their own);
+//     connected, on log axes shared by every asset (zero errors on a row of their own), and the asset's LOD
+//     pictures when the run drew them (report_files/<asset>/lodK.png beside the page, loaded lazily);
+//   - error against triangles by class: every LOD of every asset, one canvas per class on the same axes, drawn
+//     when the folded section is opened;
 //   - the ten assets with the largest Hausdorff distance, one bar each;
 //   - the effective config, folded.
 //

@@ -109,9 +109,11 @@ struct RunOptions {
   std::function<bool(const std::string& path, const char* stage)> expire_on_stage{};
 };
 
-// Seconds spent per stage, summed over assets (cache hits count only their lookup).
+// Seconds spent per stage, summed over assets (cache hits count only their lookup). `pictures` (the report's
+// picture of each LOD, rendered beside evaluate and write) is not part of an asset's "seconds".
 struct StageSeconds {
   double fingerprint = 0, load = 0, analyse = 0, lods = 0, post_process = 0, measure = 0, write = 0;
+  double pictures = 0;
 };
 
 struct RunResult {
@@ -122,6 +124,7 @@ struct RunResult {
   std::vector<std::string> skipped_assets;  // "path: reason" of the skipped ones (no class matches), sorted
   StageSeconds stages;
   std::uint64_t input_triangles = 0;  // of the assets processed (not cache hits)
+  std::size_t pictured_assets = 0;    // assets whose LOD pictures this run rendered (report_files/)
   double seconds = 0;
   bool cancelled = false;
   std::filesystem::path report_path;  // where report.json went (empty if not written)
@@ -169,6 +172,17 @@ LibraryScan scan_library(const std::filesystem::path& input_dir);
 // or the output folder cannot be created; everything
 // that goes wrong with one asset is recorded in its report record instead.
 RunResult run_batch(const BatchConfig& config, const RunOptions& options);
+
+// The report's pictures: "props/crate.obj" level 2 -> "report_files/props/crate.obj/lod2.png" (relative to the
+// output folder; level 0 is the source). kPictureSize is their side in pixels.
+inline constexpr const char* kPictureFolder = "report_files";
+inline constexpr int kPictureSize = 160;
+std::string picture_file_name(const std::string& relative_path, std::size_t level);
+
+// Whether ReportPictures::automatic draws an asset's `pictures` pictures, `rendered_triangles` triangles in all,
+// for an input of `input_triangles`: where their estimated cost is at most 5% of the asset's own processing
+// (the estimates are measured; docs/report.md, "Pictures").
+bool pictures_pay(std::size_t input_triangles, std::size_t rendered_triangles, std::size_t pictures);
 
 // Output names: "props/crate.obj" LOD 2 -> "props/crate_LOD2.obj".
 std::string lod_file_name(const std::filesystem::path& relative_path, std::size_t level);

@@ -15,9 +15,15 @@ std::string read_file(const std::filesystem::path& path);
 // and its .bin) call it before writing any, so none is left behind.
 void check_output_path(const std::filesystem::path& path);
 
+// Whether write_file_atomic waits for the data to reach the disk (fsync) before the rename. `none` is for files
+// the next run draws again (the report's pictures): a crash may then lose the file's contents, never leave a
+// half-written file under its name.
+enum class Durability { synced, none };
+
 // Writes `bytes` to `path` atomically: the data goes to "<path>.tmp-<pid>-<n>" in the same folder and is
 // renamed over `path` only when complete. On failure nothing is left behind and IoError is thrown.
-void write_file_atomic(const std::filesystem::path& path, std::string_view bytes);
+void write_file_atomic(const std::filesystem::path& path, std::string_view bytes,
+                       Durability durability = Durability::synced);
 
 // Resolves `uri` (a relative reference, percent-decoded) against `folder`. Throws IoError naming `asset` when
 // the URI is absolute, has a scheme other than data:, or escapes `folder` through "..".

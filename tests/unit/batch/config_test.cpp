@@ -394,6 +394,31 @@ TEST(BatchConfig, AssetTimeoutIsARunLimitOutsideTheCacheKey) {
   EXPECT_EQ(effective_class_json(c, c.classes[0]), effective_class_json(none, none.classes[0]));
 }
 
+TEST(BatchConfig, ReportPicturesIsAReportOptionOutsideTheCacheKey) {
+  const BatchConfig none = parse_config(minimal());
+  EXPECT_EQ(none.report.pictures, ReportPictures::automatic);
+  EXPECT_EQ(effective_config_json(none)["defaults"]["report_pictures"], "auto");
+  for (const auto& [name, value] : {std::pair{"auto", ReportPictures::automatic}, std::pair{"on", ReportPictures::on},
+                                    std::pair{"off", ReportPictures::off}}) {
+    Json doc = minimal();
+    doc["defaults"] = {{"report_pictures", name}};
+    const BatchConfig c = parse_config(doc);
+    EXPECT_EQ(c.report.pictures, value) << name;
+    const Json e = effective_config_json(c);
+    EXPECT_EQ(e["defaults"]["report_pictures"], name);
+    EXPECT_EQ(parse_config(e).report.pictures, value) << name;
+    // Pictures never change a LOD: the cache key does not see them.
+    EXPECT_EQ(effective_class_json(c, c.classes[0]), effective_class_json(none, none.classes[0])) << name;
+  }
+}
+
+TEST(BatchConfigErrors, ReportPictures) {
+  EXPECT_EQ(error_with("/defaults/report_pictures", "sometimes"),
+            expected("defaults.report_pictures: must be one of \"auto\", \"on\", \"off\", got string \"sometimes\""));
+  EXPECT_EQ(error_with("/classes/0/options/report_pictures", "on"),
+            expected(std::string("classes[0].options.report_pictures: unknown key; allowed: ") + kOptionKeys));
+}
+
 TEST(BatchConfigErrors, AssetTimeout) {
   EXPECT_EQ(error_with("/defaults/asset_timeout_s", -1), expected("defaults.asset_timeout_s: must be >= 0"));
   EXPECT_EQ(error_with("/defaults/asset_timeout_s", "1m"),
@@ -566,7 +591,7 @@ TEST(BatchConfigErrors, RedirectedKeys) {
 TEST(BatchConfigErrors, UnknownDefaultsKeyListsAllowedKeys) {
   EXPECT_EQ(error_with("/defaults/ratio", 0.5),
             expected(std::string("defaults.ratio: unknown key; allowed: ") + kClassOptionKeys +
-                     ", gltf_lods, post_process, write_source_lod0, asset_timeout_s, lod_switch"));
+                     ", gltf_lods, post_process, write_source_lod0, asset_timeout_s, report_pictures, lod_switch"));
 }
 
 TEST(BatchConfigErrors, OutputOptions) {

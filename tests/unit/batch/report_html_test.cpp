@@ -6,10 +6,13 @@
 #include <cmath>
 #include <cstddef>
 #include <limits>
+#include <map>
 #include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
+
+#include "lodforge/batch/runner.hpp"
 
 namespace lodforge::batch {
 namespace {
@@ -405,6 +408,38 @@ TEST(ReportHtml, IsDeterministic) {
   const std::string first = render_report_html(report);
   EXPECT_EQ(first, render_report_html(report));
   EXPECT_EQ(first, render_report_html(json::parse(report.dump())));  // as read back from report.json
+}
+
+// Pictures beside the report: the page counts them per asset, only when they carry the names it derives from
+// the asset's path (so a report cannot make the page load anything else).
+TEST(ReportHtml, CountsOnlyThePicturesItsPathsName) {
+  json report = sample_report();
+  const auto names = [](const std::string& path, std::size_t n) {
+    json list = json::array();
+    for (std::size_t k = 0; k < n; ++k) list.push_back(picture_file_name(path, k));
+    return list;
+  };
+  std::map<std::string, int> expected;
+  for (json& a : report["assets"]) {
+    const std::string path = a["path"];
+    if (path == "props/chair.obj") a["pictures"] = names(path, 4), expected[path] = 4;
+    if (path == "rocks/pebble & <b>.ply") a["pictures"] = names(path, 3), expected[path] = 3;
+    if (path == "trees/oak.glb") a["pictures"] = json::array({"../../etc/passwd", "report_files/x.png"});
+    if (path == "trees/pine.glb") a["pictures"] = "report_files/trees/pine.glb/lod0.png";  // not a list
+  }
+  const json data = page_data(render_report_html(report));
+  EXPECT_EQ(data["picdir"], "report_files/");
+  ASSERT_EQ(data["pic"].size(), data["name"].size());
+  for (std::size_t i = 0; i < data["pic"].size(); ++i) {
+    const int dir = data["dir"][i];
+    const std::string path = dir < 0 ? "" : data["dirs"][dir].get<std::string>() + data["name"][i].get<std::string>();
+    EXPECT_EQ(data["pic"][i], expected.count(path) ? expected[path] : 0) << path;
+  }
+  // A path the page would show changed (bytes that are not UTF-8) gets none.
+  const std::string bad = std::string("props/ch\xFF") + "air.obj";
+  report["assets"][0]["path"] = bad;
+  report["assets"][0]["pictures"] = names(bad, 4);
+  for (const json& p : page_data(render_report_html(report))["pic"]) EXPECT_NE(p, 4);
 }
 
 TEST(ReportHtml, IsSelfContained) {
