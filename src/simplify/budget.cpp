@@ -2,13 +2,14 @@
 //
 // The engines stop on their QEM error, an area-weighted RMS distance to the planes a vertex absorbed. That
 // ranks collapses well but bounds nothing: at the QEM's stop the measured Hausdorff distance is typically 2-15
-// times the budget (docs/budgets.md has the figures). So with a budget the engine runs with a collapse log,
-// and its output is measured against the reference surface, first by samples both ways (the screen: cheap,
-// and it stops at the first point over the budget), then where those pass by a certified upper bound on
-// output → reference (eval/distance_bound.hpp). When the output fails, prefixes of the same collapse sequence
-// are replayed on a fresh working mesh by bisection: the longest prefix found whose measurement holds is the
-// output. (The distance is not monotone along the sequence, so this is a prefix that holds, not always the
-// longest one.)
+// times the budget (docs/budgets.md has the figures). So with a budget the engine runs guarded
+// (GuardReference: every collapse must keep the measurement's sample points within the budget), with a
+// collapse log, and its output is measured against the reference surface, first by samples both ways (the
+// screen: cheap, and it stops at the first point over the budget), then where those pass by a certified upper
+// bound on output → reference (eval/distance_bound.hpp). A guarded run passes the samples by construction;
+// where the bound still finds a point over the budget, prefixes of the same collapse sequence are replayed on
+// a fresh working mesh by bisection: the longest prefix found whose measurement holds is the output. (The
+// distance is not monotone along the sequence, so this is a prefix that holds, not always the longest one.)
 #include <algorithm>
 #include <array>
 #include <atomic>
@@ -149,28 +150,8 @@ struct SurfaceKeys {
   std::unordered_set<PointKey, KeyHash> points;
 };
 
-// Calls f(p) for the points of a grid of about `spacing` inside triangle abc where it is longer than that (at
-// most kMaxGrid steps per edge; not the corners), until f returns false; false if it did.
-constexpr int kMaxGrid = 6;
-template <typename F>
-bool for_each_grid_point(const Vec3d& a, const Vec3d& b, const Vec3d& c, double spacing, F&& f) {
-  if (!(spacing > 0)) return true;
-  const double longest = std::sqrt(std::max({dot(b - a, b - a), dot(c - b, c - b), dot(a - c, a - c)}));
-  if (!(longest > spacing)) return true;  // small: its corners and centroid are close enough together
-  const int steps = static_cast<int>(std::min(std::ceil(longest / spacing), double{kMaxGrid}));
-  for (int i = 0; i <= steps; ++i) {
-    for (int j = 0; i + j <= steps; ++j) {
-      if (i == steps || j == steps || i + j == 0) continue;  // the corners
-      const double u = double(i) / steps, v = double(j) / steps;
-      if (!f(a + (b - a) * u + (c - a) * v)) return false;
-    }
-  }
-  return true;
-}
-
-// Sample points of a mesh `s` (its keys `own`) not found exactly in `other`: points inside its triangles, then
-// its vertices (those of a triangle with finite corners). Inside a triangle: its centroid and the grid of
-// `spacing` (for_each_grid_point). `on_other` flags the triangles found (in triangle order).
+// Sample points of a mesh `s` (its keys `own`) not found exactly in `other`: points of its triangles
+// (for_each_face_sample with `spacing`), then its vertices (those of a triangle with finite corners). `on_other` flags the triangles found (in triangle order).
 std::vector<Vec3d> samples_not_in(const SurfaceIndex& s, const SurfaceKeys& own, const SurfaceKeys& other,
                                   std::vector<char>& on_other, double spacing = 0.0) {
   std::vector<Vec3d> samples;
@@ -188,8 +169,7 @@ std::vector<Vec3d> samples_not_in(const SurfaceIndex& s, const SurfaceKeys& own,
       on_other[t] = 1;
       continue;
     }
-    samples.push_back(g);
-    for_each_grid_point(a, b, c, spacing, [&](const Vec3d& p) {
+    for_each_face_sample(a, b, c, spacing, [&](const Vec3d& p) {
       samples.push_back(p);
       return true;
     });
@@ -303,19 +283,29 @@ class Reference {
     if (samples_.empty()) {
       std::vector<char> used(index_.positions.size(), 0);
       std::vector<Vec3d> centroids;
+      std::vector<std::uint32_t> centroid_origins;
       for (std::size_t t = 0; 3 * t < index_.indices.size(); ++t) {
         const std::uint32_t* c = &index_.indices[3 * t];
         const Vec3d g = (index_.positions[c[0]] + index_.positions[c[1]] + index_.positions[c[2]]) * (1.0 / 3.0);
         if (!finite3(g)) continue;
         used[c[0]] = used[c[1]] = used[c[2]] = 1;
         centroids.push_back(g);
+        centroid_origins.push_back(static_cast<std::uint32_t>(t) | kCentroidOrigin);
       }
       for (std::size_t v = 0; v < used.size(); ++v) {
-        if (used[v]) samples_.push_back(index_.positions[v]);
+        if (!used[v]) continue;
+        samples_.push_back(index_.positions[v]);
+        origins_.push_back(static_cast<std::uint32_t>(v));
       }
       samples_.insert(samples_.end(), centroids.begin(), centroids.end());
+      origins_.insert(origins_.end(), centroid_origins.begin(), centroid_origins.end());
     }
     return samples_;
+  }
+  // Per sample of samples(): its vertex, or its triangle | kCentroidOrigin.
+  const std::vector<std::uint32_t>& origins() {
+    samples();
+    return origins_;
   }
 
  private:
@@ -330,6 +320,7 @@ class Reference {
   SurfaceKeys keys_;
   std::vector<Vec3d> suspects_;
   std::vector<Vec3d> samples_;
+  std::vector<std::uint32_t> origins_;
   std::mutex suspects_mutex_;
   tbb::task_arena arena_;
   unsigned threads_;
@@ -442,7 +433,7 @@ class PrefixScreen {
           const Vec3d& d = lod.positions[c[2]];
           const Vec3d g = (a + b + d) * (1.0 / 3.0);
           if (!finite3(g)) continue;
-          if (!(within(g) && within(a) && within(b) && within(d) && for_each_grid_point(a, b, d, spacing, within))) {
+          if (!(within(a) && within(b) && within(d) && for_each_face_sample(a, b, d, spacing, within))) {
             over.store(true, std::memory_order_relaxed);
           }
         }
@@ -509,20 +500,31 @@ BudgetCheck measure_budget(const Mesh& output, const Mesh& reference_mesh, doubl
 }
 
 SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, const SimplifyOptions& options,
-                                 const CollapsePolicies& policies, bool incremental_screens) {
+                                 const CollapsePolicies& policies, bool incremental_screens, bool guarded,
+                                 std::vector<CollapseRecord>* log_out) {
+  auto t0 = std::chrono::steady_clock::now();
+  const Mesh& reference_mesh = options.budget_reference != nullptr ? *options.budget_reference : triangles;
+  const StopRule stop = stop_rule(options, triangles.triangle_count(), compute_bounds(triangles).diagonal());
+  const double budget = stop.max_error;
+  Reference reference(reference_mesh, options.threads);
+  const GuardReference guard{.bvh = &reference.bvh(),
+                             .samples = reference.samples(),
+                             .origins = &reference_mesh == &triangles ? std::span<const std::uint32_t>(reference.origins())
+                                                                     : std::span<const std::uint32_t>(),
+                             .budget = budget,
+                             .grid_spacing = kGridSpacing * budget};
+  const double setup_ms = elapsed_ms(t0);
+
   std::vector<CollapseRecord> log;
-  SimplifyResult result = engine(triangles, options, policies, &log);
+  SimplifyResult result = engine(triangles, options, policies, &log, guarded ? &guard : nullptr);
+  if (log_out != nullptr) *log_out = log;
   // Stopped: the engine's output as it is, unmeasured (each measurement is a pass over both surfaces).
   if (result.stop_reason == StopReason::stopped) return result;
   if (options.stop.requested()) {
     result.stop_reason = StopReason::stopped;
     return result;
   }
-  const auto t0 = std::chrono::steady_clock::now();
-  const Mesh& reference_mesh = options.budget_reference != nullptr ? *options.budget_reference : triangles;
-  const StopRule stop = stop_rule(options, triangles.triangle_count(), compute_bounds(triangles).diagonal());
-  const double budget = stop.max_error;
-  Reference reference(reference_mesh, options.threads);
+  t0 = std::chrono::steady_clock::now();
 
   BudgetCheck& check = result.budget;
   check.verified = true;
@@ -634,7 +636,7 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
   }
   if (result.stop_reason == StopReason::stopped) {  // the longest prefix found to hold so far, unrefined
     check.within = false;
-    check.ms = elapsed_ms(t0);
+    check.ms = setup_ms + elapsed_ms(t0);
     return result;
   }
 
@@ -646,7 +648,7 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
   const double diagonal = compute_bounds(reference_mesh).diagonal();
   result.error_bound_abs = full.bound;
   result.error_bound_rel = diagonal > 0.0 ? full.bound / diagonal : 0.0;
-  check.ms = elapsed_ms(t0);
+  check.ms = setup_ms + elapsed_ms(t0);
   return result;
 }
 

@@ -63,7 +63,7 @@ Parallel::Parallel(unsigned threads)
 // ---- CollapseMesh: setup ------------------------------------------------------------------------------------
 
 CollapseMesh::CollapseMesh(const Mesh& m, const SimplifyOptions& options, Parallel& parallel,
-                           const CollapsePolicies* policies)
+                           const CollapsePolicies* policies, const GuardReference* guard)
     : src_(m), options_(options), policies_(policies) {
   const std::size_t nv = m.vertex_count(), nw = m.wedge_count();
   for (std::uint32_t v : options.locked_vertices) {
@@ -192,6 +192,7 @@ CollapseMesh::CollapseMesh(const Mesh& m, const SimplifyOptions& options, Parall
   setup_keys();
   setup(parallel);
   setup_attributes(parallel);
+  if (guard != nullptr && guard->bvh != nullptr) setup_guard(*guard, parallel);
 }
 
 // The painted weight of each vertex (options.priority_channel), 1 where there is none. A per-wedge source
@@ -832,6 +833,11 @@ Check CollapseMesh::check(std::uint32_t u, std::uint32_t v, const Vec3d& x, Scra
   }
   c.victim = a;
   c.survivor = b;
+  if (guard_bvh_ != nullptr && !guard_ok(a, b, c, x, s)) {  // the costliest test: last
+    c.veto = Veto::error_budget;
+    c.victim = c.survivor = kInvalidIndex;
+    return c;
+  }
   return c;
 }
 
@@ -972,6 +978,7 @@ void CollapseMesh::apply(const Check& c, const Vec3d& x, Scratch& s) {
   state_[a] |= kDead;
   ++version_[a];
   ++version_[b];
+  if (guard_bvh_ != nullptr) guard_reattach(c, s);
 }
 
 void CollapseMesh::commit(Check c, const Vec3d& x, Scratch& s) {

@@ -24,6 +24,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <span>
 #include <utility>
 #include <vector>
 
@@ -33,6 +34,7 @@
 #include <tbb/task_arena.h>
 
 #include "lodforge/core/mesh.hpp"
+#include "lodforge/eval/bvh.hpp"
 #include "lodforge/metric/attribute_quadric.hpp"
 #include "lodforge/metric/quadric.hpp"
 #include "lodforge/simplify/policies.hpp"
@@ -118,6 +120,51 @@ void small_sort(T* p, std::size_t n) {
   }
 }
 
+// Calls f(p) for the points of a grid of about `spacing` inside triangle abc where it is longer than that (at
+// most kMaxGrid steps per edge; not the corners), until f returns false; false if it did.
+inline constexpr int kMaxGrid = 6;
+template <typename F>
+bool for_each_grid_point(const Vec3d& a, const Vec3d& b, const Vec3d& c, double spacing, F&& f) {
+  if (!(spacing > 0)) return true;
+  const double longest = std::sqrt(std::max({dot(b - a, b - a), dot(c - b, c - b), dot(a - c, a - c)}));
+  if (!(longest > spacing)) return true;  // small: its corners and centroid are close enough together
+  const int steps = static_cast<int>(std::min(std::ceil(longest / spacing), double{kMaxGrid}));
+  for (int i = 0; i <= steps; ++i) {
+    for (int j = 0; i + j <= steps; ++j) {
+      if (i == steps || j == steps || i + j == 0) continue;  // the corners
+      const double u = double(i) / steps, v = double(j) / steps;
+      if (!f(a + (b - a) * u + (c - a) * v)) return false;
+    }
+  }
+  return true;
+}
+
+// The points where an error budget measures a triangle abc of an output against the reference: its centroid;
+// with a `spacing`, also its edge midpoints and the grid of for_each_grid_point. Stops when f returns false;
+// false if it did.
+template <typename F>
+bool for_each_face_sample(const Vec3d& a, const Vec3d& b, const Vec3d& c, double spacing, F&& f) {
+  if (!f((a + b + c) * (1.0 / 3.0))) return false;
+  if (!(spacing > 0)) return true;
+  return f((a + b) * 0.5) && f((b + c) * 0.5) && f((c + a) * 0.5) && for_each_grid_point(a, b, c, spacing, f);
+}
+
+// An error budget held during the run (budget.cpp): a collapse is refused (Veto::error_budget) unless every
+// sample point of the reference stays within `budget` of the faces around the collapse, and the moved vertex,
+// the new faces' sample points (for_each_face_sample with `grid_spacing`) stay within `budget` of the
+// reference. The samples include those the measurement after the run takes, so the output
+// passes its sampled part by construction. Model units.
+inline constexpr std::uint32_t kCentroidOrigin = 0x80000000u;
+struct GuardReference {
+  const TriangleBvh* bvh = nullptr;  // the reference surface
+  std::span<const Vec3d> samples;    // its vertices and triangle centroids
+  // Where the reference is the engine's input: per sample, its vertex, or its triangle | kCentroidOrigin (the
+  // samples are then attached without a search). Empty otherwise.
+  std::span<const std::uint32_t> origins;
+  double budget = 0;
+  double grid_spacing = 0;
+};
+
 inline double elapsed_ms(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - since).count();
 }
@@ -178,6 +225,9 @@ struct Scratch {
   std::vector<std::uint32_t> parent;    // setup: fan union-find
   std::vector<std::uint32_t> wedge_map;  // attribute mode: victim wedge, target wedge pairs (check, apply)
   std::vector<double> attr;              // attribute mode: one merged wedge's optimal attributes
+  std::vector<std::array<Vec3d, 3>> fan;  // guard: the faces a collapse leaves around the new vertex
+  std::vector<std::uint32_t> fan_face;    // guard: their face ids
+  std::vector<std::uint32_t> moved;       // guard: samples being attached to new faces
 };
 
 class CollapseMesh {
@@ -186,8 +236,9 @@ class CollapseMesh {
   // a repeated vertex are dropped; they carry no surface (a mesh may be left with none). Throws
   // std::invalid_argument for out-of-range locked vertex ids. `policies` (may be null) outlives the mesh;
   // evaluate() and check() consult its placement, cost and filter.
+  // `guard` (may be null) holds an error budget during the run; its surface and samples outlive the mesh.
   CollapseMesh(const Mesh& triangles, const SimplifyOptions& options, Parallel& parallel,
-               const CollapsePolicies* policies = nullptr);
+               const CollapsePolicies* policies = nullptr, const GuardReference* guard = nullptr);
 
   std::size_t alive_faces() const { return alive_faces_; }
   std::size_t vertex_count() const { return vx_.size(); }
@@ -327,6 +378,12 @@ class CollapseMesh {
   void setup_priority(std::vector<float>& priority) const;
   void setup(Parallel& parallel);
   void setup_attributes(Parallel& parallel);
+  // Guarded budget (budget_guard.cpp): each reference sample attached to its nearest working face at the start;
+  // guard_ok() is check()'s last test, guard_reattach() moves the samples of the faces apply() changed.
+  void setup_guard(const GuardReference& guard, Parallel& parallel);
+  bool guard_ok(std::uint32_t a, std::uint32_t b, const Check& c, const Vec3d& x, Scratch& s) const;
+  void guard_reattach(const Check& c, Scratch& s);
+  bool face_within(const Vec3d& p, const Vec3d& q, const Vec3d& r, std::uint32_t& hint) const;
 
   const Mesh& src_;
   SimplifyOptions options_;
@@ -391,6 +448,16 @@ class CollapseMesh {
   // The seam constraint planes within each vertex's quadric that lie within one material (empty when seams
   // never relax or no vertex has two wedges): relax() takes them out of the quadrics at its first stage.
   std::vector<Quadric> seam_q_;
+
+  // --- error budget held during the run (GuardReference; empty without one) ---
+  const TriangleBvh* guard_bvh_ = nullptr;
+  double guard_budget_ = 0.0;          // model units, less a margin for rounding the output to float
+  double guard_budget2_ = 0.0;         // the same, normalised and squared
+  double guard_spacing_ = 0.0;         // model units
+  std::vector<Vec3d> guard_samples_;   // normalised
+  std::vector<std::uint32_t> guard_head_;  // per face: its first attached sample, kInvalidIndex if none
+  std::vector<std::uint32_t> guard_next_;  // per sample: the next one attached to the same face
+  std::vector<std::uint32_t> guard_hint_;  // per vertex: a reference triangle near it (query start)
 };
 
 }  // namespace lodforge::collapse

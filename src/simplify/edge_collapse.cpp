@@ -55,12 +55,12 @@ constexpr std::size_t kLargeStars = 64;
 class GreedyEngine {
  public:
   GreedyEngine(const Mesh& triangles, const SimplifyOptions& options, const CollapsePolicies& policies,
-               std::vector<CollapseRecord>* log)
+               std::vector<CollapseRecord>* log, const GuardReference* guard)
       : options_(options),
         policies_(policies),
         log_(log),
         parallel_(options.threads),
-        cm_(triangles, options, parallel_, policies.any() ? &policies : nullptr),
+        cm_(triangles, options, parallel_, policies.any() ? &policies : nullptr, guard),
         stop_(stop_rule(options, triangles.triangle_count(), cm_.diagonal())),
         budget2_(normalised_budget_squared(stop_, cm_.scale())),
         parked_(cm_.vertex_count()),
@@ -290,6 +290,7 @@ class GreedyEngine {
       if (!checks_[i].ok()) {
         parked_.park(selected_[i].u(), selected_[i].v);
         ++result_.vetoes[checks_[i].veto];
+        over_budget_ = over_budget_ || checks_[i].veto == Veto::error_budget;  // a guarded budget refused it
         continue;
       }
       if (cm_.removes_last_material(checks_[i])) {  // counts only fall: never valid again
@@ -457,6 +458,7 @@ std::vector<std::string> diagnose_floors(const CollapseMesh& cm, double budget2)
           break;
         case Veto::skin: ++count["skin"]; break;
         case Veto::uv_flip: ++count["uv_checks"]; break;
+        case Veto::error_budget: ++count["error_budget"]; break;
         default: ++count["topology"]; break;
       }
     }
@@ -504,9 +506,10 @@ void finish_result(const CollapseMesh& cm, double max_error, const StopRule& sto
 }
 
 SimplifyResult run_edge_collapse(const Mesh& triangles, const SimplifyOptions& options,
-                                 const CollapsePolicies& policies, std::vector<CollapseRecord>* log) {
+                                 const CollapsePolicies& policies, std::vector<CollapseRecord>* log,
+                                 const GuardReference* guard) {
   const auto start = std::chrono::steady_clock::now();
-  GreedyEngine engine(triangles, options, policies, log);
+  GreedyEngine engine(triangles, options, policies, log, guard);
   return engine.run(start);
 }
 

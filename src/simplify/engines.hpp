@@ -24,11 +24,14 @@ struct CollapseRecord {
 };
 
 // Engines. `triangles` holds triangles only; the result's triangles_before is filled in by simplify().
-// `log`, when given, receives every committed collapse in commit order.
+// `log`, when given, receives every committed collapse in commit order; `guard`, when given, holds an error
+// budget during the run (collapses that would break it are refused).
 SimplifyResult run_edge_collapse(const Mesh& triangles, const SimplifyOptions& options,
-                                 const CollapsePolicies& policies = {}, std::vector<CollapseRecord>* log = nullptr);
+                                 const CollapsePolicies& policies = {}, std::vector<CollapseRecord>* log = nullptr,
+                                 const GuardReference* guard = nullptr);
 SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions& options,
-                                   const CollapsePolicies& policies = {}, std::vector<CollapseRecord>* log = nullptr);
+                                   const CollapsePolicies& policies = {}, std::vector<CollapseRecord>* log = nullptr,
+                                   const GuardReference* guard = nullptr);
 // Vertex clustering (clustering.cpp): any face kinds (polygons are triangulated first), no collapse log; an
 // error budget is held by measuring the output per grid resolution. Fills the whole result.
 SimplifyResult run_cluster(const Mesh& mesh, const SimplifyOptions& options);
@@ -36,11 +39,15 @@ SimplifyResult run_cluster(const Mesh& mesh, const SimplifyOptions& options);
 // simplify() with verify_budget and an error budget: runs `engine` with a log, measures its output against the
 // reference and backs off along the log where it exceeds the budget (budget.cpp).
 using LoggedEngine = SimplifyResult (*)(const Mesh&, const SimplifyOptions&, const CollapsePolicies&,
-                                        std::vector<CollapseRecord>*);
-// `incremental` screens the bisection's steps by what each changed (the default); off, each step is screened
-// in full: the same decisions at more work, for tests.
+                                        std::vector<CollapseRecord>*, const GuardReference*);
+// `guarded` holds the budget during the engine's run (GuardReference: the measurement then passes by
+// construction and no back-off is needed); off, the engine stops on its QEM error alone and the back-off finds
+// the prefix. `incremental` screens the bisection's steps by what each changed (the default); off, each step
+// is screened in full: the same decisions at more work, for tests. `log`, when given, receives the engine's
+// collapse log (the sequence the back-off replays).
 SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, const SimplifyOptions& options,
-                                 const CollapsePolicies& policies, bool incremental = true);
+                                 const CollapsePolicies& policies, bool incremental = true, bool guarded = true,
+                                 std::vector<CollapseRecord>* log = nullptr);
 // The same measurement of one output (no back-off).
 BudgetCheck measure_budget(const Mesh& output, const Mesh& reference, double budget, unsigned threads);
 

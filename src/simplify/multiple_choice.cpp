@@ -60,11 +60,12 @@ struct Sample {
 }  // namespace
 
 SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions& options,
-                                   const CollapsePolicies& policies, std::vector<CollapseRecord>* log) {
+                                   const CollapsePolicies& policies, std::vector<CollapseRecord>* log,
+                                   const GuardReference* guard) {
   SimplifyResult result;
   auto t0 = std::chrono::steady_clock::now();
   Parallel parallel(options.threads);
-  CollapseMesh cm(triangles, options, parallel, policies.any() ? &policies : nullptr);
+  CollapseMesh cm(triangles, options, parallel, policies.any() ? &policies : nullptr, guard);
   const StopRule stop = stop_rule(options, triangles.triangle_count(), cm.diagonal());
   const std::size_t target = stop.target_triangles;
   const double budget2 = normalised_budget_squared(stop, cm.scale());
@@ -137,6 +138,7 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
         for (const Sample& smp : samples) {
           const Check c = cm.check(smp.u, smp.v, smp.eval.position, s);
           if (!c.ok()) ++w.vetoes[c.veto];
+          if (c.veto == Veto::error_budget) w.over_budget = true;  // a guarded budget refused it
           if (c.ok()) {
             w.found = true;
             w.u = smp.u;

@@ -377,8 +377,12 @@ SimplifyResult simplify(const Mesh& mesh, const SimplifyOptions& options, const 
 
   const collapse::LoggedEngine engine =
       options.engine == Engine::multiple_choice ? collapse::run_multiple_choice : collapse::run_edge_collapse;
-  SimplifyResult r = verifies_budget(options) ? collapse::run_within_budget(engine, tris, options, policies)
-                                              : engine(tris, options, policies, nullptr);
+  // The multiple-choice engine is not guarded: it samples a few candidates a step, and where the guard refuses
+  // most of them its rounds fail and it stops far above what the back-off along its log reaches.
+  const bool guarded = options.engine != Engine::multiple_choice;
+  SimplifyResult r = verifies_budget(options)
+                         ? collapse::run_within_budget(engine, tris, options, policies, true, guarded)
+                         : engine(tris, options, policies, nullptr, nullptr);
   r.triangles_before = mesh.triangle_count();
   r.quads_before = kinds.quads;
   r.timings.setup_ms += triangulate_ms;

@@ -148,9 +148,10 @@ bool meets(const Mesh& src, const Mesh& lod, double budget_abs, const Settings& 
 void run_oracle(Case& c, const Mesh& src, const SimplifyOptions& options, const Settings& s) {
   const auto t0 = Clock::now();
   const double budget_abs = c.budget * c.diagonal;
-  // The engine run simplify() logs and backs off along: same triangles, same options.
+  // The engine run simplify() logs and backs off along (guarded, as simplify() runs it): same triangles, same
+  // options.
   std::vector<collapse::CollapseRecord> log;
-  (void)collapse::run_edge_collapse(src, options, {}, &log);
+  (void)collapse::run_within_budget(collapse::run_edge_collapse, src, options, {}, true, true, &log);
   c.log_size = log.size();
   collapse::Parallel parallel(options.threads);
   SimplifyOptions replay_options = options;

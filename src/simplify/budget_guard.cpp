@@ -1,0 +1,213 @@
+// An error budget held while the engine runs (GuardReference, collapse_mesh.hpp).
+//
+// Every sample point of the reference (its vertices and triangle centroids) is attached to one working face
+// within the budget of it. A collapse rewrites only the faces around its edge, so only the samples attached
+// there can move away from the surface: check() asks whether each of them is within the budget of some face
+// the collapse leaves around the new vertex, and whether the new vertex and the new faces' sample points are
+// within 0.7 of the budget of the reference; apply() attaches those samples to their nearest new face. The
+// distance to the attached face is at least the distance to the whole mesh, so the output passes the
+// measurement's samples both ways by construction, at a cost linear in the collapses. Output → reference is
+// held below the budget at the samples, on a grid twice as fine as the measurement's, because the engine,
+// refused only where a sample fails, pushes every face to the limit, and the surface between samples may lie
+// farther (docs/budgets.md, "The guarded engine").
+#include <algorithm>
+#include <cfloat>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "collapse_mesh.hpp"
+
+namespace lodforge::collapse {
+namespace {
+
+double distance_sq(const Vec3d& p, const std::array<Vec3d, 3>& t) {
+  const Vec3d q = closest_point_on_triangle(p, t[0], t[1], t[2]).point;
+  return dot(p - q, p - q);
+}
+
+// A face's sample points must lie this much closer than the budget: the surface may be farther between them.
+constexpr double kSampleReach = 0.7;
+// Faces are also sampled on a grid this much finer than the measurement's.
+constexpr double kDenseSpacing = 0.5;
+
+// Samples whose attached face keeps them this close (in budgets) stay where they are when the face changes.
+constexpr double kStayFraction = 0.25;
+
+}  // namespace
+
+// Whether the sample points of triangle pqr (model units; for_each_face_sample, the measurement's own) lie
+// within kSampleReach of the guard's budget of the reference.
+bool CollapseMesh::face_within(const Vec3d& p, const Vec3d& q, const Vec3d& r, std::uint32_t& hint) const {
+  const double reach = kSampleReach * guard_budget_;
+  auto near = [&](const Vec3d& y) { return guard_bvh_->any_within(y, reach, hint); };
+  return for_each_face_sample(p, q, r, guard_spacing_, near) &&
+         for_each_grid_point(p, q, r, kDenseSpacing * guard_spacing_, near);
+}
+
+void CollapseMesh::setup_guard(const GuardReference& g, Parallel& parallel) {
+  // The output's positions are rounded to float; a margin of a few float steps of the largest coordinate keeps
+  // the rounded output within the budget.
+  double largest = 0.0;
+  const Bounds3 rb = g.bvh->bounds();
+  if (!rb.empty()) {
+    for (int k = 0; k < 3; ++k) largest = std::max({largest, std::abs(rb.min[k]), std::abs(rb.max[k])});
+  }
+  for (int k = 0; k < 3; ++k) {
+    largest = std::max({largest, std::abs(origin_[k]), std::abs(origin_[k] + scale_)});
+  }
+  guard_budget_ = g.budget - 8.0 * FLT_EPSILON * largest;
+  if (!(guard_budget_ > 0.0)) guard_budget_ = 0.0;
+  guard_budget2_ = (guard_budget_ / scale_) * (guard_budget_ / scale_);
+  guard_spacing_ = g.grid_spacing;
+  guard_bvh_ = g.bvh;
+
+  // Each sample to a working face: where the reference is the input, the face it lies on (its own triangle, or
+  // one around its vertex); the rest to the nearest face (a BVH over the faces as they are now).
+  const std::size_t nf = tri_.size() / 3;
+  const double inv = 1.0 / scale_;
+  const std::size_t ns = g.samples.size();
+  guard_samples_.resize(ns);
+  std::vector<std::uint32_t> face_of(ns, kInvalidIndex);
+  if (g.origins.size() == ns) {
+    std::vector<std::uint32_t> slot_of(src_.face_count(), kInvalidIndex);
+    for (std::size_t f = 0; f < nf; ++f) slot_of[tri_source_[f]] = static_cast<std::uint32_t>(f);
+    for (std::size_t i = 0; i < ns; ++i) {
+      const std::uint32_t o = g.origins[i];
+      if (o & kCentroidOrigin) {
+        const std::uint32_t t = o & ~kCentroidOrigin;
+        face_of[i] = t < slot_of.size() ? slot_of[t] : kInvalidIndex;
+      } else if (o < size_.size() && size_[o] > 0) {
+        face_of[i] = star(o)[0];
+      }
+    }
+  }
+  std::vector<std::size_t> unplaced;
+  for (std::size_t i = 0; i < ns; ++i) {
+    guard_samples_[i] = (g.samples[i] - origin_) * inv;
+    if (face_of[i] == kInvalidIndex && finite3(guard_samples_[i])) unplaced.push_back(i);
+  }
+  if (!unplaced.empty()) {
+    std::vector<Vec3d> positions(vx_.size());
+    for (std::size_t v = 0; v < vx_.size(); ++v) positions[v] = vx_[v].pos;
+    const TriangleBvh faces(positions, tri_);
+    constexpr std::size_t kChunk = 1024;
+    const std::size_t nu = unplaced.size();
+    parallel.for_ranges((nu + kChunk - 1) / kChunk, 1, [&](std::size_t cb, std::size_t ce) {
+      for (std::size_t c = cb; c < ce; ++c) {
+        std::uint32_t hint = kInvalidIndex;  // samples come in surface order: the last answer is near the next
+        for (std::size_t k = c * kChunk; k < std::min(nu, (c + 1) * kChunk); ++k) {
+          const std::size_t i = unplaced[k];
+          const BvhHit h = faces.closest_point(guard_samples_[i], hint);
+          if (h.found()) hint = face_of[i] = h.triangle;
+        }
+      }
+    });
+  }
+  guard_head_.assign(nf, kInvalidIndex);
+  guard_next_.assign(ns, kInvalidIndex);
+  for (std::size_t i = ns; i-- > 0;) {  // each face's list in sample order
+    const std::uint32_t f = face_of[i];
+    if (f == kInvalidIndex) continue;
+    guard_next_[i] = guard_head_[f];
+    guard_head_[f] = static_cast<std::uint32_t>(i);
+  }
+  guard_hint_.assign(vx_.size(), kInvalidIndex);
+}
+
+bool CollapseMesh::guard_ok(std::uint32_t a, std::uint32_t b, const Check& c, const Vec3d& x, Scratch& s) const {
+  auto is_edge_face = [&](std::uint32_t f) { return f == c.edge_faces[0] || f == c.edge_faces[1]; };
+  // The faces the collapse leaves around the new vertex, with a and b at x.
+  s.fan.clear();
+  for (const std::uint32_t w : {a, b}) {
+    const std::uint32_t* fl = star(w);
+    for (std::uint32_t i = 0; i < size_[w]; ++i) {
+      if (is_edge_face(fl[i])) continue;
+      const std::uint32_t* t = &tri_[3 * std::size_t{fl[i]}];
+      std::array<Vec3d, 3> corners;
+      for (int k = 0; k < 3; ++k) corners[k] = t[k] == a || t[k] == b ? x : vx_[t[k]].pos;
+      s.fan.push_back(corners);
+    }
+  }
+  // Output → reference: the new vertex, then every new face.
+  std::uint32_t hint = guard_hint_[b] != kInvalidIndex ? guard_hint_[b] : guard_hint_[a];
+  if (!guard_bvh_->any_within(model_position(x), kSampleReach * guard_budget_, hint)) return false;
+  const bool b_stays = vx_[b].pos == x;
+  for (const std::array<Vec3d, 3>& t : s.fan) {
+    if (b_stays && !(t[0] == x || t[1] == x || t[2] == x)) continue;  // unchanged
+    if (!face_within(model_position(t[0]), model_position(t[1]), model_position(t[2]), hint)) return false;
+  }
+  // Reference → output: the samples attached to every face that changes or dies (a's, the edge faces among
+  // them; a half-edge collapse leaves the survivor's other faces where they are).
+  for (const std::uint32_t w : {a, b}) {
+    if (w == b && b_stays) continue;
+    const std::uint32_t* fl = star(w);
+    for (std::uint32_t i = 0; i < size_[w]; ++i) {
+      const std::uint32_t f = fl[i];
+      if (w == b && is_edge_face(f)) continue;  // seen from a
+      for (std::uint32_t smp = guard_head_[f]; smp != kInvalidIndex; smp = guard_next_[smp]) {
+        const Vec3d& p = guard_samples_[smp];
+        bool within = false;
+        for (std::size_t k = 0; k < s.fan.size() && !within; ++k) within = distance_sq(p, s.fan[k]) <= guard_budget2_;
+        if (!within) return false;
+      }
+    }
+  }
+  return true;
+}
+
+void CollapseMesh::guard_reattach(const Check& c, Scratch& s) {
+  const std::uint32_t b = c.survivor;
+  // The survivor's faces as they are now.
+  s.fan.clear();
+  s.fan_face.clear();
+  const std::uint32_t* fl = star(b);
+  for (std::uint32_t i = 0; i < size_[b]; ++i) {
+    const std::uint32_t* t = &tri_[3 * std::size_t{fl[i]}];
+    s.fan.push_back({vx_[t[0]].pos, vx_[t[1]].pos, vx_[t[2]].pos});
+    s.fan_face.push_back(fl[i]);
+  }
+  // Detach the samples of the dead faces and of every face around b; a sample still close to its own
+  // (surviving) face stays on it.
+  const double stay2 = kStayFraction * kStayFraction * guard_budget2_;
+  s.moved.clear();
+  for (std::uint32_t e = 0; e < c.edge_face_count; ++e) {
+    std::uint32_t& head = guard_head_[c.edge_faces[e]];
+    for (std::uint32_t smp = head; smp != kInvalidIndex; smp = guard_next_[smp]) s.moved.push_back(smp);
+    head = kInvalidIndex;
+  }
+  for (std::size_t k = 0; k < s.fan.size(); ++k) {
+    std::uint32_t& head = guard_head_[s.fan_face[k]];
+    std::uint32_t kept = kInvalidIndex;
+    for (std::uint32_t smp = head, next; smp != kInvalidIndex; smp = next) {
+      next = guard_next_[smp];
+      if (distance_sq(guard_samples_[smp], s.fan[k]) <= stay2) {
+        guard_next_[smp] = kept;
+        kept = smp;
+      } else {
+        s.moved.push_back(smp);
+      }
+    }
+    head = kept;
+  }
+  for (const std::uint32_t smp : s.moved) {
+    const Vec3d& p = guard_samples_[smp];
+    double best = std::numeric_limits<double>::infinity();
+    std::size_t at = 0;
+    for (std::size_t k = 0; k < s.fan.size(); ++k) {
+      const double d2 = distance_sq(p, s.fan[k]);
+      if (d2 < best) {
+        best = d2;
+        at = k;
+      }
+    }
+    if (s.fan.empty()) continue;  // no face left around the survivor: nothing to attach to
+    std::uint32_t& head = guard_head_[s.fan_face[at]];
+    guard_next_[smp] = head;
+    head = smp;
+  }
+  std::uint32_t hint = guard_hint_[b] != kInvalidIndex ? guard_hint_[b] : guard_hint_[c.victim];
+  if (guard_bvh_->any_within(model_position(vx_[b].pos), guard_budget_, hint)) guard_hint_[b] = hint;
+}
+
+}  // namespace lodforge::collapse
