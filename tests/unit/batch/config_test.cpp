@@ -416,7 +416,7 @@ TEST(BatchConfigErrors, ReportPictures) {
   EXPECT_EQ(error_with("/defaults/report_pictures", "sometimes"),
             expected("defaults.report_pictures: must be one of \"auto\", \"on\", \"off\", got string \"sometimes\""));
   EXPECT_EQ(error_with("/classes/0/options/report_pictures", "on"),
-            expected(std::string("classes[0].options.report_pictures: unknown key; allowed: ") + kOptionKeys));
+            expected(std::string("classes[0].options.report_pictures: unknown key; allowed: ") + kClassOptionKeys));
 }
 
 TEST(BatchConfigErrors, AssetTimeout) {
