@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <tuple>
+#include <vector>
 
 #include "engines.hpp"
 #include "lodforge/eval/eval.hpp"
@@ -75,27 +77,44 @@ TEST(ErrorBudget, BackOffIsTheSameOnAnyThreadCountAndForBothTriangleEngines) {
   }
 }
 
+// Budget cases over a bumpy sphere and grid: first LODs at three budgets and a chain's next LOD (measured
+// against the sphere), each as the options that make it.
+struct BudgetCase {
+  const Mesh* input;
+  double budget;
+  SimplifyOptions options;
+};
+struct BudgetCases {
+  BudgetCases()
+      : sphere(make_bumpy_sphere(40, 60)),
+        grid(make_bumpy_grid(40)),
+        first(simplify(sphere, {.target_ratio = 0.001, .max_error_rel = 0.002})) {
+    for (const auto& [input, reference, budget] : {std::tuple<const Mesh*, const Mesh*, double>{&sphere, nullptr, 0.001},
+                                                   {&sphere, nullptr, 0.01},
+                                                   {&grid, nullptr, 0.003},
+                                                   {&first.mesh, &sphere, 0.008}}) {
+      SimplifyOptions o{.target_ratio = 0.001, .max_error_rel = budget, .threads = 2};
+      o.budget_reference = reference;
+      cases.push_back({input, budget, o});
+    }
+  }
+  Mesh sphere, grid;
+  SimplifyResult first;
+  std::vector<BudgetCase> cases;
+};
+
 // A guarded run holds the budget by itself: its output passes the measurement at once (nothing backed off,
 // one measurement), stays within the budget by eval's denser sampling, and keeps no more than a quarter more
 // triangles than the unguarded engine backed off along its log (on the scanned corpus it keeps far fewer,
 // docs/budgets.md); on a first LOD and on a chain's next one. (simplify() guards the greedy engine only.)
 TEST(ErrorBudget, AGuardedRunHoldsTheBudgetWithoutBackingOff) {
-  const Mesh sphere = make_bumpy_sphere(40, 60);
-  const Mesh grid = make_bumpy_grid(40);
-  const SimplifyResult first = simplify(sphere, {.target_ratio = 0.001, .max_error_rel = 0.002});
-  struct Case {
-    const Mesh* input;
-    const Mesh* reference;
-    double budget;
-  };
-  for (const Case& c : {Case{&sphere, nullptr, 0.001}, Case{&sphere, nullptr, 0.01}, Case{&grid, nullptr, 0.003},
-                        Case{&first.mesh, &sphere, 0.008}}) {
-    SimplifyOptions o{.target_ratio = 0.001, .max_error_rel = c.budget, .threads = 2};
-    o.budget_reference = c.reference;
+  const BudgetCases all;
+  for (const BudgetCase& c : all.cases) {
+    const SimplifyOptions& o = c.options;
     const SimplifyResult guarded = simplify(*c.input, o);
     const SimplifyResult unguarded =
         collapse::run_within_budget(collapse::run_edge_collapse, *c.input, o, {}, true, /*guarded=*/false);
-    const Mesh& reference = c.reference != nullptr ? *c.reference : *c.input;
+    const Mesh& reference = o.budget_reference != nullptr ? *o.budget_reference : *c.input;
     const double diag = compute_bounds(*c.input).diagonal();
     EXPECT_TRUE(guarded.budget.within) << c.budget;
     EXPECT_EQ(guarded.budget.collapses_undone, 0u) << c.budget;
@@ -110,18 +129,9 @@ TEST(ErrorBudget, AGuardedRunHoldsTheBudgetWithoutBackingOff) {
 // The bisection's steps screened by what their collapses changed decide exactly as screening each step in
 // full: the same prefixes measured, the same output, on a first LOD and on a chain's next one.
 TEST(ErrorBudget, IncrementalScreensDecideLikeFullScreens) {
-  const Mesh sphere = make_bumpy_sphere(40, 60);
-  const Mesh grid = make_bumpy_grid(40);
-  const SimplifyResult first = simplify(sphere, {.target_ratio = 0.001, .max_error_rel = 0.002});
-  struct Case {
-    const Mesh* input;
-    const Mesh* reference;
-    double budget;
-  };
-  for (const Case& c : {Case{&sphere, nullptr, 0.001}, Case{&sphere, nullptr, 0.01}, Case{&grid, nullptr, 0.003},
-                        Case{&first.mesh, &sphere, 0.008}}) {
-    SimplifyOptions o{.target_ratio = 0.001, .max_error_rel = c.budget, .threads = 2};
-    o.budget_reference = c.reference;
+  const BudgetCases all;
+  for (const BudgetCase& c : all.cases) {
+    const SimplifyOptions& o = c.options;
     // Unguarded: a guarded run rarely backs off, and this is about the back-off.
     const SimplifyResult incremental =
         collapse::run_within_budget(collapse::run_edge_collapse, *c.input, o, {}, true, /*guarded=*/false);
