@@ -132,11 +132,10 @@ bool CollapseMesh::guard_ok(std::uint32_t a, std::uint32_t b, const Check& c, co
   // Output → reference: the new vertex, then every new face.
   std::uint32_t hint = guard_hint_[b] != kInvalidIndex ? guard_hint_[b] : guard_hint_[a];
   if (!guard_bvh_->any_within(model_position(x), kSampleReach * guard_budget_, hint)) return false;
-  const bool b_stays = vx_[b].pos == x;
   for (const std::array<Vec3d, 3>& t : s.fan) {
-    if (b_stays && !(t[0] == x || t[1] == x || t[2] == x)) continue;  // unchanged
     if (!face_within(model_position(t[0]), model_position(t[1]), model_position(t[2]), hint)) return false;
   }
+  const bool b_stays = vx_[b].pos == x;
   // Reference → output: the samples attached to every face that changes or dies (a's, the edge faces among
   // them; a half-edge collapse leaves the survivor's other faces where they are).
   for (const std::uint32_t w : {a, b}) {
