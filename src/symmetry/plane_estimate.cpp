@@ -332,7 +332,8 @@ Plane estimate_plane(const Mesh& mesh, const MeshGeometry& g, const PointTree& t
   double best_score = INFINITY;
   for (const auto& [s, i] : ranked) {
     if (refined.size() == kRefinedCandidates) break;
-    if (std::any_of(refined.begin(), refined.end(), [&](const Plane& r) { return same_plane(r, candidates[i], diagonal); })) {
+    const Plane& candidate = candidates[i];  // a structured binding cannot be captured before C++20's P1091 in clang
+    if (std::any_of(refined.begin(), refined.end(), [&](const Plane& r) { return same_plane(r, candidate, diagonal); })) {
       continue;
     }
     refined.push_back(candidates[i]);
