@@ -141,11 +141,14 @@ try {
       const enabledTriangles = () => scene.meshes
           .filter((m) => !m.isDisposed() && m.isEnabled() && m.getTotalVertices() > 0)
           .reduce((n, m) => n + m.getTotalIndices() / 3, 0);
-      let loader = null;
       let extension = false;
+      // Subscribed when the plugin is activated, before it can complete: polling for the plugin could miss a
+      // completion that comes first on a loaded machine.
+      let markComplete;
+      const completed = new Promise((resolve) => { markComplete = resolve; });
       const observer = BABYLON.SceneLoader.OnPluginActivatedObservable.add((plugin) => {
         if (plugin.name !== 'gltf') return;
-        loader = plugin;
+        plugin.onCompleteObservable.addOnce(() => markComplete(true));
         // Every LOD node's mesh is created disabled and enabled once its level is loaded (the coarser one is
         // then disposed): the triangles of each enabled mesh, in order, are the levels as Babylon showed them.
         plugin.onMeshLoadedObservable.add((mesh) => {
@@ -158,10 +161,6 @@ try {
           extension = true;
           ext.onNodeLODsLoadedObservable.add((index) => events.push(index));
         });
-      });
-      const completed = new Promise((resolve) => {
-        const wait = () => (loader ? loader.onCompleteObservable.addOnce(() => resolve(true)) : setTimeout(wait, 5));
-        wait();
       });
       try {
         await BABYLON.SceneLoader.ImportMeshAsync('', rootUrl, fileName, scene);
