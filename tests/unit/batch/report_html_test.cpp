@@ -439,7 +439,8 @@ TEST(ReportHtml, CountsOnlyThePicturesItsPathsName) {
   const std::string bad = std::string("props/ch\xFF") + "air.obj";
   report["assets"][0]["path"] = bad;
   report["assets"][0]["pictures"] = names(bad, 4);
-  for (const json& p : page_data(render_report_html(report))["pic"]) EXPECT_NE(p, 4);
+  const json bad_data = page_data(render_report_html(report));  // kept alive: the loop reads into it
+  for (const json& p : bad_data["pic"]) EXPECT_NE(p, 4);
 }
 
 TEST(ReportHtml, IsSelfContained) {
