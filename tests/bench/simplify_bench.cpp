@@ -57,6 +57,7 @@
 #include "lodforge/eval/eval.hpp"
 #include "lodforge/io/asset.hpp"
 #include "lodforge/simplify/simplify.hpp"
+#include "asset_geometry.hpp"
 #include "terrain.hpp"
 
 namespace {
@@ -206,18 +207,7 @@ Input load_input(const fs::path& path) {
   const lodforge::io::Asset asset = lodforge::io::load_asset(path);
   std::vector<Vec3f> positions;
   std::vector<std::uint32_t> indices;
-  for (const Mesh& m : asset.meshes) {
-    const auto base = static_cast<std::uint32_t>(positions.size());
-    positions.insert(positions.end(), m.positions.begin(), m.positions.end());
-    for (std::size_t f = 0; f < m.face_count(); ++f) {
-      const std::uint32_t begin = m.face_offsets[f], k = m.face_size(f);
-      for (std::uint32_t i = 1; i + 1 < k; ++i) {
-        indices.push_back(base + m.corner_vertex(begin));
-        indices.push_back(base + m.corner_vertex(begin + i));
-        indices.push_back(base + m.corner_vertex(begin + i + 1));
-      }
-    }
-  }
+  lodforge::bench::asset_triangles(asset, positions, indices);
   Input in;
   in.name = path.stem().string();
   in.path = path.string();
