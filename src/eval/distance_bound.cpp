@@ -29,6 +29,9 @@ struct Hit {
   std::uint32_t triangle = kInvalidIndex;
 };
 
+// Where the query allowance cannot split every open node, a round splits the worst of them with this fraction
+// (1/k) of what is left.
+constexpr std::size_t kDeepFraction = 4;
 // A node lying on a flat region of the target counts as on it within this fraction of `good_enough`.
 constexpr double kFlatSlack = 0.05;
 // ... and its walk may follow the target up to this fraction of `good_enough` off the start triangle's plane.
@@ -42,6 +45,7 @@ Hit query(const TriangleBvh& bvh, const Vec3d& p) {
 struct Node {
   Vec3d p[3];
   Hit h[3];
+  double cap = std::numeric_limits<double>::infinity();  // a bound known for the triangle it is part of
 };
 
 // A node's bound and the largest distance measured on it (its corners and, where needed, its centroid).
@@ -257,7 +261,8 @@ Bound bound(const Node& n, const SurfaceIndex& target, double flat_slack, double
     const Vec3d from = closest_point_on_triangle(g, a, b, c).point;
     upper = std::min(upper, flat_region_bound(n, target, hg.triangle, from, flat_slack, plane_tolerance));
   }
-  return {std::max(upper, std::max(corner_max, hg.distance)), std::max(corner_max, hg.distance), true};
+  const double lower = std::max(corner_max, hg.distance);
+  return {std::max(std::min(upper, n.cap), lower), lower, true};
 }
 
 template <typename F>
@@ -323,6 +328,10 @@ DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const
       active[i].p[k] = to_double(mesh.positions[v]);
       active[i].h[k] = vertex_hit[v];
     }
+    const std::size_t t = triangles[i] / 3;
+    if (options.known_upper != nullptr && t < options.known_upper->size() && (*options.known_upper)[t] >= 0) {
+      active[i].cap = (*options.known_upper)[t];
+    }
   }
 
   double settled = 0.0;  // largest bound of the nodes no longer refined
@@ -372,14 +381,17 @@ DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const
     }
     if (split.size() > affordable) {
       // Not all can split: the worst do (ties by position, so the choice is the same on any thread count), the
-      // others wait with their bounds.
+      // others wait with their bounds. Only a part of what is left is spent per round, so that the worst
+      // nodes, which bound the result, are split again in the rounds after rather than the allowance spread
+      // over nodes that do not decide it.
+      const std::size_t take = std::max<std::size_t>(1, affordable / kDeepFraction);
       std::stable_sort(split.begin(), split.end(),
                        [&](std::uint32_t x, std::uint32_t y) { return bounds[x].upper > bounds[y].upper; });
-      for (std::size_t k = affordable; k < split.size(); ++k) {
+      for (std::size_t k = take; k < split.size(); ++k) {
         waiting.push_back(active[split[k]]);
         waiting_bounds.push_back(bounds[split[k]]);
       }
-      split.resize(affordable);
+      split.resize(take);
       std::sort(split.begin(), split.end());
     }
     // Split each into four at its edge midpoints (measured here, once per split).
@@ -393,9 +405,10 @@ DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const
           m.h[k] = query(target.bvh, m.p[k]);
         }
         Node* c = &next[4 * s];
-        c[0] = {{q.p[0], m.p[0], m.p[2]}, {q.h[0], m.h[0], m.h[2]}};
-        c[1] = {{m.p[0], q.p[1], m.p[1]}, {m.h[0], q.h[1], m.h[1]}};
-        c[2] = {{m.p[2], m.p[1], q.p[2]}, {m.h[2], m.h[1], q.h[2]}};
+        m.cap = q.cap;
+        c[0] = {{q.p[0], m.p[0], m.p[2]}, {q.h[0], m.h[0], m.h[2]}, q.cap};
+        c[1] = {{m.p[0], q.p[1], m.p[1]}, {m.h[0], q.h[1], m.h[1]}, q.cap};
+        c[2] = {{m.p[2], m.p[1], q.p[2]}, {m.h[2], m.h[1], q.h[2]}, q.cap};
         c[3] = m;
       }
     });

@@ -248,7 +248,8 @@ class Reference {
   // budget (as far as its query allowance goes) and down to kGoodEnough of it, which is also the bound
   // reported: the bound decides, or where it could not be refined far enough, the largest distance it
   // measured.
-  Measurement measure(const Mesh& output, double budget) {
+  // `face_bounds` (may be null): per output triangle, a bound known already (a guarded run's).
+  Measurement measure(const Mesh& output, double budget, const std::vector<double>* face_bounds = nullptr) {
     Measurement m = screen(output, budget);
     if (!m.within) return m;
     const std::size_t measured = static_cast<std::size_t>(std::count(m.on_target.begin(), m.on_target.end(), 0));
@@ -257,7 +258,8 @@ class Reference {
                                  .give_up_above = budget,
                                  .max_queries = kQueriesPerTriangle * measured + kBaseQueries,
                                  .threads = threads_,
-                                 .on_target = &m.on_target};
+                                 .on_target = &m.on_target,
+                                 .known_upper = face_bounds};
     DistanceBound b = distance_bound(output, index_, options);
     if (b.converged && b.upper > budget && b.lower < budget) {
       // Just under the budget: refine until the bound decides (the tolerance that separates them).
@@ -507,12 +509,14 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
   const StopRule stop = stop_rule(options, triangles.triangle_count(), compute_bounds(triangles).diagonal());
   const double budget = stop.max_error;
   Reference reference(reference_mesh, options.threads);
+  std::vector<double> face_bounds;
   const GuardReference guard{.bvh = &reference.bvh(),
                              .samples = reference.samples(),
                              .origins = &reference_mesh == &triangles ? std::span<const std::uint32_t>(reference.origins())
                                                                      : std::span<const std::uint32_t>(),
                              .budget = budget,
-                             .grid_spacing = kGridSpacing * budget};
+                             .grid_spacing = kGridSpacing * budget,
+                             .face_bounds = &face_bounds};
   const double setup_ms = elapsed_ms(t0);
 
   std::vector<CollapseRecord> log;
@@ -529,7 +533,8 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
   BudgetCheck& check = result.budget;
   check.verified = true;
   check.budget_abs = budget;
-  Measurement full = reference.measure(result.mesh, budget);
+  const bool bounds_known = face_bounds.size() == result.mesh.triangle_count();
+  Measurement full = reference.measure(result.mesh, budget, bounds_known ? &face_bounds : nullptr);
   ++check.prefixes_measured;
   if (!full.within) {
     // Bisection over prefixes [lo, hi): prefix lo holds (the input itself does), prefix hi does not. The

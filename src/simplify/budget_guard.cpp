@@ -21,6 +21,21 @@
 namespace lodforge::collapse {
 namespace {
 
+// The largest distance from a point of triangle pqr to its nearest corner: the circumradius where the triangle
+// is acute (the circumcentre is that point), else at most half the longest edge (the farthest point lies on an
+// edge).
+double cover_radius(const Vec3d& p, const Vec3d& q, const Vec3d& r) {
+  const Vec3d e0 = q - p, e1 = r - q, e2 = p - r;
+  const double l0 = dot(e0, e0), l1 = dot(e1, e1), l2 = dot(e2, e2);
+  double cover = 0.5 * std::sqrt(std::max({l0, l1, l2}));
+  if (dot(e0, r - p) > 0 && dot(e1, p - q) > 0 && dot(e2, q - r) > 0) {
+    const Vec3d n = cross(e0, r - p);
+    const double twice_area = std::sqrt(dot(n, n));
+    if (twice_area > 0) cover = std::max(cover, std::sqrt(l0 * l1 * l2) / (2.0 * twice_area));
+  }
+  return cover;
+}
+
 double distance_sq(const Vec3d& p, const std::array<Vec3d, 3>& t) {
   const Vec3d q = closest_point_on_triangle(p, t[0], t[1], t[2]).point;
   return dot(p - q, p - q);
@@ -43,6 +58,27 @@ bool CollapseMesh::face_within(const Vec3d& p, const Vec3d& q, const Vec3d& r, s
   auto near = [&](const Vec3d& y) { return guard_bvh_->any_within(y, reach, hint); };
   return for_each_face_sample(p, q, r, guard_spacing_, near) &&
          for_each_grid_point(p, q, r, kDenseSpacing * guard_spacing_, near);
+}
+
+double CollapseMesh::guarded_face_bound(const Vec3d& p, const Vec3d& q, const Vec3d& r, double corners) const {
+  // Every point of the triangle is within cover(pqr) / steps of a point of the lattice the guard tested (the
+  // dense grid's, its corners included; the edge midpoints where the triangle is too small for a grid), and the
+  // distance to a surface is 1-Lipschitz.
+  const double spacing = kDenseSpacing * guard_spacing_;
+  const double longest = std::sqrt(std::max({dot(q - p, q - p), dot(r - q, r - q), dot(p - r, p - r)}));
+  int steps = guard_spacing_ > 0 ? 2 : 1;
+  if (spacing > 0 && longest > spacing) {
+    steps = std::max(2, static_cast<int>(std::min(std::ceil(longest / spacing), double{kMaxGrid})));
+  }
+  return std::max(corners, kSampleReach * guard_budget_) + cover_radius(p, q, r) / steps + guard_rounding_;
+}
+
+void CollapseMesh::store_face_bounds() const {
+  if (guard_bounds_out_ == nullptr) return;
+  guard_bounds_out_->clear();
+  for (std::size_t f = 0; f < guard_face_bound_.size(); ++f) {
+    if (tri_[3 * f] != kInvalidIndex) guard_bounds_out_->push_back(guard_face_bound_[f]);
+  }
 }
 
 void CollapseMesh::setup_guard(const GuardReference& g, Parallel& parallel) {
@@ -113,6 +149,28 @@ void CollapseMesh::setup_guard(const GuardReference& g, Parallel& parallel) {
     guard_head_[f] = static_cast<std::uint32_t>(i);
   }
   guard_hint_.assign(vx_.size(), kInvalidIndex);
+
+  // Bounds on the distances as they start: zero where the reference is the input (its own triangles);
+  // otherwise each vertex measured, and each face within its farthest corner's distance plus its cover.
+  guard_rounding_ = 2.0 * FLT_EPSILON * largest;
+  guard_bounds_out_ = g.face_bounds;
+  guard_vertex_bound_.assign(vx_.size(), 0.0);
+  guard_face_bound_.assign(nf, 0.0);
+  if (g.origins.size() != ns) {
+    parallel.for_ranges(vx_.size(), 1024, [&](std::size_t b, std::size_t e) {
+      for (std::size_t v = b; v < e; ++v) {
+        if (size_[v] == 0) continue;
+        guard_vertex_bound_[v] = g.bvh->closest_point(model_position(vx_[v].pos)).distance() + guard_rounding_;
+      }
+    });
+    for (std::size_t f = 0; f < nf; ++f) {
+      const std::uint32_t* t = &tri_[3 * f];
+      if (t[0] == kInvalidIndex) continue;
+      const Vec3d p = model_position(vx_[t[0]].pos), q = model_position(vx_[t[1]].pos), r = model_position(vx_[t[2]].pos);
+      guard_face_bound_[f] = std::max({guard_vertex_bound_[t[0]], guard_vertex_bound_[t[1]], guard_vertex_bound_[t[2]]}) +
+                             cover_radius(p, q, r) + guard_rounding_;
+    }
+  }
 }
 
 bool CollapseMesh::guard_ok(std::uint32_t a, std::uint32_t b, const Check& c, const Vec3d& x, Scratch& s) const {
@@ -155,7 +213,7 @@ bool CollapseMesh::guard_ok(std::uint32_t a, std::uint32_t b, const Check& c, co
   return true;
 }
 
-void CollapseMesh::guard_reattach(const Check& c, Scratch& s) {
+void CollapseMesh::guard_reattach(const Check& c, Scratch& s, bool b_moved, std::size_t kept) {
   const std::uint32_t b = c.survivor;
   // The survivor's faces as they are now.
   s.fan.clear();
@@ -207,6 +265,20 @@ void CollapseMesh::guard_reattach(const Check& c, Scratch& s) {
   }
   std::uint32_t hint = guard_hint_[b] != kInvalidIndex ? guard_hint_[b] : guard_hint_[c.victim];
   if (guard_bvh_->any_within(model_position(vx_[b].pos), guard_budget_, hint)) guard_hint_[b] = hint;
+
+  // guard_ok() tested b's position and every face now around b: their bounds follow from its samples. Where b
+  // did not move, its own faces (the first `kept` of its list) are unchanged and keep the better bound.
+  const double reach = kSampleReach * guard_budget_ + guard_rounding_;
+  double& vb = guard_vertex_bound_[b];
+  vb = b_moved ? reach : std::min(vb, reach);
+  for (std::size_t k = 0; k < s.fan.size(); ++k) {
+    const std::uint32_t* t = &tri_[3 * std::size_t{s.fan_face[k]}];
+    const double corners = std::max({guard_vertex_bound_[t[0]], guard_vertex_bound_[t[1]], guard_vertex_bound_[t[2]]});
+    const std::array<Vec3d, 3>& c = s.fan[k];
+    const double bound = guarded_face_bound(model_position(c[0]), model_position(c[1]), model_position(c[2]), corners);
+    double& fb = guard_face_bound_[s.fan_face[k]];
+    fb = !b_moved && k < kept ? std::min(fb, bound) : bound;
+  }
 }
 
 }  // namespace lodforge::collapse

@@ -925,6 +925,7 @@ void CollapseMesh::apply(const Check& c, const Vec3d& x, Scratch& s) {
       if (tri_[3 * std::size_t{fl[i]}] != kInvalidIndex) s.ring.push_back(fl[i]);
     }
   }
+  const std::size_t b_kept = s.ring.size();
   {
     // Without a seam every corner of a carries ka[0] == ka[1]: no need to read the keys.
     const bool seam = (state_[a] & kSeam) != 0;
@@ -971,14 +972,15 @@ void CollapseMesh::apply(const Check& c, const Vec3d& x, Scratch& s) {
     reattached_ = true;
     reclassify(b);  // b gained a's unpaired keys
   }
-  if (!(vx_[b].pos == x)) {
+  const bool b_moved = !(vx_[b].pos == x);
+  if (b_moved) {
     vx_[b].pos = x;
     state_[b] |= kMoved;
   }
   state_[a] |= kDead;
   ++version_[a];
   ++version_[b];
-  if (guard_bvh_ != nullptr) guard_reattach(c, s);
+  if (guard_bvh_ != nullptr) guard_reattach(c, s, b_moved, b_kept);
 }
 
 void CollapseMesh::commit(Check c, const Vec3d& x, Scratch& s) {

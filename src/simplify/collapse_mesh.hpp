@@ -163,6 +163,9 @@ struct GuardReference {
   std::span<const std::uint32_t> origins;
   double budget = 0;
   double grid_spacing = 0;
+  // Filled at the end of the run where not null: per output triangle, in output order, an upper bound on its
+  // distance to the reference (model units; +inf where none is known), from the points the guard tested.
+  std::vector<double>* face_bounds = nullptr;
 };
 
 inline double elapsed_ms(std::chrono::steady_clock::time_point since) {
@@ -330,6 +333,8 @@ class CollapseMesh {
   // The simplified mesh: alive faces in input order, referenced wedges and vertices compacted in id order,
   // unmoved vertices bit-identical to the input.
   Mesh output() const;
+  // Guarded runs whose GuardReference asked for them: writes the per-face bounds in output() order.
+  void store_face_bounds() const;
 
  private:
   // SeamStage::uv on: an edge with a complex endpoint whose other endpoint is not pinned (locked or frozen).
@@ -382,8 +387,12 @@ class CollapseMesh {
   // guard_ok() is check()'s last test, guard_reattach() moves the samples of the faces apply() changed.
   void setup_guard(const GuardReference& guard, Parallel& parallel);
   bool guard_ok(std::uint32_t a, std::uint32_t b, const Check& c, const Vec3d& x, Scratch& s) const;
-  void guard_reattach(const Check& c, Scratch& s);
+  // `b_moved`: the survivor moved; `kept`: how many faces at the head of its list were its own and unchanged.
+  void guard_reattach(const Check& c, Scratch& s, bool b_moved, std::size_t kept);
   bool face_within(const Vec3d& p, const Vec3d& q, const Vec3d& r, std::uint32_t& hint) const;
+  // An upper bound on the distance of triangle pqr (model units) to the reference, given bounds on its corners'
+  // distances and that its guard samples passed.
+  double guarded_face_bound(const Vec3d& p, const Vec3d& q, const Vec3d& r, double corners) const;
 
   const Mesh& src_;
   SimplifyOptions options_;
@@ -458,6 +467,10 @@ class CollapseMesh {
   std::vector<std::uint32_t> guard_head_;  // per face: its first attached sample, kInvalidIndex if none
   std::vector<std::uint32_t> guard_next_;  // per sample: the next one attached to the same face
   std::vector<std::uint32_t> guard_hint_;  // per vertex: a reference triangle near it (query start)
+  std::vector<double> guard_vertex_bound_;  // per vertex: an upper bound on its distance (model units)
+  std::vector<double> guard_face_bound_;    // per face: an upper bound on its distance (model units)
+  double guard_rounding_ = 0.0;             // what rounding the output to float may add to a distance
+  std::vector<double>* guard_bounds_out_ = nullptr;
 };
 
 }  // namespace lodforge::collapse

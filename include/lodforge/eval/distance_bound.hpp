@@ -45,6 +45,9 @@ struct DistanceBoundOptions {
   // Optional, one flag per triangle of the mesh (in triangle_vertex_indices order): triangles known to lie on
   // the target (a LOD's triangles the simplifier left as they were) bound at 0 and are not measured.
   const std::vector<char>* on_target = nullptr;
+  // Optional, one per triangle as above: an upper bound on that triangle's distance known already (+inf: none);
+  // the result is never above it there, and refinement goes on below it only where that helps.
+  const std::vector<double>* known_upper = nullptr;
 };
 
 struct DistanceBound {

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <vector>
 
 #include "lodforge/eval/eval.hpp"
 #include "test_support.hpp"
@@ -131,6 +132,31 @@ TEST(DistanceBound, AHoleInAFlatRegionUnderALodIsMeasured) {
   EXPECT_GE(b.upper, 0.5);
   EXPECT_GT(b.lower, 0.5 / 1.02 - 1e-9);
   EXPECT_LE(b.upper, 0.5 * 1.02 + 1e-9);
+}
+
+// Bounds known per triangle cap the result where the query allowance runs out, and are never the answer where
+// refinement does better; deep refinement of the worst triangles when the allowance binds.
+TEST(DistanceBound, KnownBoundsCapTheResult) {
+  const Mesh sphere = testing::make_uv_sphere(12, 16, 1.0f);
+  const Mesh fine = testing::make_uv_sphere(48, 64, 1.0f);
+  const SurfaceIndex target(fine);
+  const DistanceBound exact = distance_bound(sphere, target, {.tolerance = 0.01});
+  ASSERT_TRUE(exact.converged);
+  // A valid cap per triangle (the converged bound, raised a little), and a starved allowance.
+  const std::vector<double> caps(sphere.triangle_count(), exact.upper * 1.2);
+  const DistanceBoundOptions starved{.tolerance = 0.01, .max_queries = sphere.triangle_count() + 300, .threads = 1};
+  const DistanceBound without = distance_bound(sphere, target, starved);
+  DistanceBoundOptions capped = starved;
+  capped.known_upper = &caps;
+  const DistanceBound with = distance_bound(sphere, target, capped);
+  EXPECT_FALSE(without.converged);
+  EXPECT_GT(without.upper, exact.upper * 1.2) << "the starved bound alone is loose";
+  EXPECT_LE(with.upper, exact.upper * 1.2 + 1e-12);
+  EXPECT_GE(with.upper, exact.lower);
+  // Caps far above the truth change nothing once the allowance suffices.
+  const std::vector<double> loose(sphere.triangle_count(), 10.0);
+  DistanceBoundOptions plenty{.tolerance = 0.01, .known_upper = &loose};
+  EXPECT_DOUBLE_EQ(distance_bound(sphere, target, plenty).upper, exact.upper);
 }
 
 }  // namespace

@@ -2,11 +2,13 @@
 // a reference other than the input (LOD chains), and the comparison with the oracle prefix.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <tuple>
 #include <vector>
 
 #include "engines.hpp"
+#include "lodforge/eval/bvh.hpp"
 #include "lodforge/eval/eval.hpp"
 #include "lodforge/simplify/policies.hpp"
 #include "lodforge/simplify/simplify.hpp"
@@ -214,6 +216,53 @@ TEST(ErrorBudget, WithinAQuarterOfTheOraclePrefix) {
       << "held " << held.triangles_after << ", oracle " << oracle_triangles << " bound " << held.budget.bound_abs / diag
       << " sampled " << held.budget.sampled_abs / diag << " reverse " << held.budget.reverse_abs / diag << " undone "
       << held.budget.collapses_undone << " measured " << held.budget.prefixes_measured << " collapses " << held.collapses;
+}
+
+// A guarded run bounds each output triangle's distance to the reference from the points it tested: every point
+// of the triangle (here a lattice of 45 per triangle) is within its bound, for a first LOD (the reference is the
+// input) and for a chain's next one (the reference is the source, the input a LOD of it).
+TEST(ErrorBudget, GuardedFaceBoundsHoldEveryPointOfTheirTriangle) {
+  const Mesh source = triangulated(make_bumpy_sphere(40, 60));
+  const double diag = compute_bounds(source).diagonal();
+  const TriangleBvh bvh = make_triangle_bvh(source);
+  std::vector<Vec3d> samples;
+  for (const Vec3f& p : source.positions) samples.push_back(to_double(p));
+  const Mesh lod1 = simplify(source, {.target_ratio = 0.001, .max_error_rel = 0.002}).mesh;
+  for (const Mesh* input : {&source, &lod1}) {
+    for (const double budget : {0.004, 0.02}) {
+      std::vector<double> bounds;
+      const collapse::GuardReference guard{.bvh = &bvh,
+                                           .samples = samples,
+                                           .origins = {},
+                                           .budget = budget * diag,
+                                           .grid_spacing = 4.0 * budget * diag,
+                                           .face_bounds = &bounds};
+      const SimplifyOptions o{.target_ratio = 0.001, .max_error_rel = budget};
+      const SimplifyResult r = collapse::run_edge_collapse(*input, o, {}, nullptr, &guard);
+      ASSERT_EQ(bounds.size(), r.mesh.triangle_count()) << budget;
+      ASSERT_LT(r.mesh.triangle_count(), input->triangle_count()) << budget;
+      const std::vector<std::uint32_t> idx = triangle_vertex_indices(r.mesh);
+      double worst = 0;  // the largest measured distance over its bound
+      std::vector<double> sorted = bounds;
+      std::sort(sorted.begin(), sorted.end());
+      for (std::size_t t = 0; t < bounds.size(); ++t) {
+        const Vec3d a = to_double(r.mesh.positions[idx[3 * t]]), b = to_double(r.mesh.positions[idx[3 * t + 1]]),
+                    c = to_double(r.mesh.positions[idx[3 * t + 2]]);
+        constexpr int n = 8;
+        for (int i = 0; i <= n; ++i) {
+          for (int j = 0; i + j <= n; ++j) {
+            const Vec3d p = a + (b - a) * (double(i) / n) + (c - a) * (double(j) / n);
+            worst = std::max(worst, bvh.closest_point(p).distance() / bounds[t]);
+          }
+        }
+      }
+      EXPECT_LE(worst, 1.0) << "a point farther than its triangle's bound; budget " << budget;
+      EXPECT_GT(worst, 0.1) << "bounds far above every distance; budget " << budget;
+      // Tight enough to report: most triangles within a few budgets (sample reach + grid cover).
+      EXPECT_LE(sorted[sorted.size() / 2], 3.0 * budget * diag) << budget;
+      EXPECT_GT(sorted.back(), 0.0);
+    }
+  }
 }
 
 }  // namespace
