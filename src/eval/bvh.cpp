@@ -59,6 +59,8 @@ constexpr double kOrientedKeepRatio = 0.5;
 // The wedge cut is kept (and with it the oriented box) where the points' convex hull seen along the normal covers
 // less than this fraction of their rectangle: only then does it prune clearly more.
 constexpr double kWedgeCutRatio = 0.9;
+// A group is elongated, and gets the hull, when its largest principal variance is this many times its middle one.
+constexpr double kElongated = 16.0;
 constexpr double kWedgeKeepRatio = 0.6;
 
 // A triangle is a sliver for closest_point_on_triangle when the squared sine of its angle at the first corner is
@@ -165,7 +167,7 @@ Eigen::Matrix3d covariance(const Moments& m) {
 
 // The principal axes of the points whose moments these are, as the rows of `frame` (smallest spread first);
 // false where they are not defined (fewer than three points, non-finite input).
-bool principal_frame(const Moments& m, double frame[3][3]) {
+bool principal_frame(const Moments& m, double frame[3][3], double spread[3]) {
   if (!(m.n >= 3)) return false;
   const Eigen::Matrix3d cov = covariance(m);
   if (!cov.allFinite()) return false;
@@ -173,6 +175,7 @@ bool principal_frame(const Moments& m, double frame[3][3]) {
   if (solver.info() != Eigen::Success || !solver.eigenvectors().allFinite()) return false;
   for (int k = 0; k < 3; ++k) {
     for (int j = 0; j < 3; ++j) frame[k][j] = solver.eigenvectors()(j, k);
+    spread[k] = solver.eigenvalues()(k);
   }
   return true;
 }
@@ -677,19 +680,24 @@ void TriangleBvh::fit_oriented_boxes() {
   auto fit = [&](std::uint32_t node, int i, const Fitted& f) {
     if (f.end - f.begin > kOrientedMaxTriangles || f.moments.n < 3) return;
     const Moments& m = f.moments;
-    double frame[3][3];
-    if (!principal_frame(m, frame)) return;
-    plane.clear();
-    for (std::uint32_t s = f.begin; s < f.end; ++s) {
-      slot_points(s, [&](const Vec3d& q) {
-        const Vec3d d = q - centre;
-        plane.push_back({frame[1][0] * d[0] + frame[1][1] * d[1] + frame[1][2] * d[2],
-                         frame[2][0] * d[0] + frame[2][1] * d[1] + frame[2][2] * d[2]});
-      });
-    }
+    double frame[3][3], spread[3];
+    if (!principal_frame(m, frame, spread)) return;
     double e1[3], e2[3];
     for (int j = 0; j < 3; ++j) e1[j] = frame[1][j], e2[j] = frame[2][j];
-    const PlaneFit pf = turn_to_small_rectangle(frame, plane, hull);
+    PlaneFit pf;
+    // Only elongated groups (slivers, wedges of them) are worth the hull; compact patches of a clean surface keep
+    // their principal axes, which fit them about as well.
+    if (spread[2] > kElongated * spread[1]) {
+      plane.clear();
+      for (std::uint32_t s = f.begin; s < f.end; ++s) {
+        slot_points(s, [&](const Vec3d& q) {
+          const Vec3d d = q - centre;
+          plane.push_back({frame[1][0] * d[0] + frame[1][1] * d[1] + frame[1][2] * d[2],
+                           frame[2][0] * d[0] + frame[2][1] * d[1] + frame[2][2] * d[2]});
+        });
+      }
+      pf = turn_to_small_rectangle(frame, plane, hull);
+    }
     const bool wedge = (pf.cut[0] != 0 || pf.cut[1] != 0) && pf.hull_area < kWedgeCutRatio * pf.rect_area;
     const bool wedge_keeps = wedge && pf.hull_area < kWedgeKeepRatio * pf.rect_area;
     double cut[3] = {0, 0, 0};
