@@ -9,7 +9,12 @@
 //     best triangle so far, by more than rounding, is skipped), as in Metro's AABB-tree queries (Cignoni,
 //     Rocchini & Scopigno 1998).
 //   - Oriented boxes from the principal axes of a subtree's corners (Gottschalk, Lin & Manocha, "OBBTree",
-//     SIGGRAPH 1996), kept beside the axis-aligned ones where they are much tighter.
+//     SIGGRAPH 1996), kept beside the axis-aligned ones where they are much tighter; within the plane of the
+//     two larger axes turned to the smallest rectangle along a convex hull edge (Freeman & Shapira, "Determining
+//     the minimum-area encasing rectangle for an arbitrary closed curve", CACM 1975), tried over the longest
+//     edges of Andrew's monotone-chain hull.
+//   - Early split clipping (Ernst & Greiner, "Early split clipping for bounding volume hierarchies", IEEE RT
+//     2007): long slivers enter the tree as several references, each with the box of one slab of the triangle.
 //   - A walk across edges from a start triangle towards the query (Devillers, Pion & Teillaud, "Walking in a
 //     triangulation", SoCG 2001) to seed a hinted descent with a tight bound.
 #include "lodforge/eval/bvh.hpp"
@@ -33,8 +38,11 @@ constexpr int kStackSize = kMaxDepth + 2;
 // a box is opened only when it is nearer than the best triangle by more than that. Mesh positions are floats,
 // good to 2^-24 of their size, so the triangles of one polygon, one plane in the file, come out of rounding that
 // far off each other; without the slack a point on a surface many triangles overlap (a fanned non-convex
-// polygon, faces written many times) would test every one of them for the smallest rounding error.
-constexpr double kTieFraction = 0x1p-26;
+// polygon, faces written many times) would test every one of them for the smallest rounding error. A box
+// around thousands of such triangles must hold every rounded corner, so it is as far off the best of them as
+// the rounding itself: a quarter of it (2^-26) left the nested slivers of a turned fan at hundreds of times a
+// clean grid's work.
+constexpr double kTieFraction = 0x1p-24;
 // A hinted query first walks from the hint to the neighbour across the edge its closest point lies on, at most
 // this many steps: in a stream of nearby queries the answer is usually the hint or a few triangles away, and a
 // tight start prunes the tree at once even where many boxes overlap the query (fans of slivers).
@@ -48,10 +56,30 @@ constexpr std::uint32_t kOrientedMaxTriangles = 4096;
 // does it prune clearly more. Clean meshes still keep many (small groups of triangles at an angle), which costs
 // them about a fifth more work per query (docs/performance.md).
 constexpr double kOrientedKeepRatio = 0.5;
+// The wedge cut is kept (and with it the oriented box) where the points' convex hull seen along the normal covers
+// less than this fraction of their rectangle: only then does it prune clearly more.
+constexpr double kWedgeCutRatio = 0.9;
+// A group is elongated, and gets the hull, when its largest principal variance is this many times its middle one.
+constexpr double kElongated = 16.0;
+constexpr double kWedgeKeepRatio = 0.6;
 
 // A triangle is a sliver for closest_point_on_triangle when the squared sine of its angle at the first corner is
 // below this (~0.06 degrees).
 constexpr double kSliverSinSq = 1e-6;
+
+// A triangle whose axis-aligned box is much larger than itself (a long sliver at an angle to the axes: the box of
+// a needle from one corner of a cube to the other is the cube) is entered into the tree as several pieces, slabs
+// across its length, each with its own box and centroid, so that the boxes say where the sliver is. Each piece
+// is wanted where its box's half-area is still above kSplitRatio times its own area.
+constexpr double kSplitRatio = 8.0;
+// At most this many pieces per triangle, and at most kSplitExtra extra pieces per triangle of the mesh in all,
+// so that memory stays within a small factor of the unsplit tree's whatever the input.
+constexpr std::uint32_t kMaxPieces = 64;
+constexpr double kSplitExtra = 1.0;
+// Slivers fanned from a corner shared by more than this many triangles stay whole: their centroids already spread
+// along the fan, so the tree groups neighbours and their oriented boxes prune, whereas their pieces would all
+// start at the shared corner, where the SAH cannot tell them apart (a fanned disk split so ran 40x the work).
+constexpr std::uint32_t kFanValence = 16;
 
 double dist_sq(const Vec3d& a, const Vec3d& b) {
   const Vec3d d = a - b;
@@ -139,7 +167,7 @@ Eigen::Matrix3d covariance(const Moments& m) {
 
 // The principal axes of the points whose moments these are, as the rows of `frame` (smallest spread first);
 // false where they are not defined (fewer than three points, non-finite input).
-bool principal_frame(const Moments& m, double frame[3][3]) {
+bool principal_frame(const Moments& m, double frame[3][3], double spread[3]) {
   if (!(m.n >= 3)) return false;
   const Eigen::Matrix3d cov = covariance(m);
   if (!cov.allFinite()) return false;
@@ -147,14 +175,148 @@ bool principal_frame(const Moments& m, double frame[3][3]) {
   if (solver.info() != Eigen::Success || !solver.eigenvectors().allFinite()) return false;
   for (int k = 0; k < 3; ++k) {
     for (int j = 0; j < 3; ++j) frame[k][j] = solver.eigenvectors()(j, k);
+    spread[k] = solver.eigenvalues()(k);
   }
   return true;
+}
+
+// Turns the two larger principal axes (rows 1 and 2 of `frame`) within their plane so that the rectangle around
+// the points projected onto it is smallest, trying the directions of the longest edges of their convex hull (the
+// smallest rectangle has a side along a hull edge). Principal axes alone leave a wedge of nested slivers (a fan
+// from one corner) tilted in its box, whose far corners then overlap points well outside it.
+struct PlaneFit {
+  double cut[2] = {0, 0};  // unit direction in the plane of the original rows 1 and 2, or 0
+  double hull_area = 0, rect_area = 0;
+};
+
+PlaneFit turn_to_small_rectangle(double frame[3][3], std::vector<std::array<double, 2>>& pts,
+                                 std::vector<std::array<double, 2>>& hull) {
+  PlaneFit fit;
+  constexpr std::size_t kTried = 16;
+  std::sort(pts.begin(), pts.end());
+  pts.erase(std::unique(pts.begin(), pts.end()), pts.end());
+  if (pts.size() < 3) return fit;
+  // Andrew's monotone chain.
+  auto turn = [](const std::array<double, 2>& o, const std::array<double, 2>& a, const std::array<double, 2>& b) {
+    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+  };
+  hull.assign(2 * pts.size(), {});
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    while (k >= 2 && turn(hull[k - 2], hull[k - 1], pts[i]) <= 0) --k;
+    hull[k++] = pts[i];
+  }
+  for (std::size_t i = pts.size() - 1, lower = k + 1; i-- > 0;) {
+    while (k >= lower && turn(hull[k - 2], hull[k - 1], pts[i]) <= 0) --k;
+    hull[k++] = pts[i];
+  }
+  hull.resize(k - 1);  // the last point repeats the first
+  if (hull.size() < 3) return fit;
+  // Edges by length, longest first (index as tie-break, for determinism).
+  std::vector<std::pair<double, std::size_t>> edges(hull.size());
+  for (std::size_t i = 0; i < hull.size(); ++i) {
+    const auto& a = hull[i];
+    const auto& b = hull[(i + 1) % hull.size()];
+    edges[i] = {-((b[0] - a[0]) * (b[0] - a[0]) + (b[1] - a[1]) * (b[1] - a[1])), i};
+  }
+  const std::size_t tried = std::min(kTried, edges.size());
+  std::partial_sort(edges.begin(), edges.begin() + static_cast<std::ptrdiff_t>(tried), edges.end());
+  auto area_along = [&](double c, double s) {
+    double lo0 = INFINITY, hi0 = -INFINITY, lo1 = INFINITY, hi1 = -INFINITY;
+    for (const auto& q : hull) {
+      const double u = c * q[0] + s * q[1], v = -s * q[0] + c * q[1];
+      lo0 = std::min(lo0, u), hi0 = std::max(hi0, u), lo1 = std::min(lo1, v), hi1 = std::max(hi1, v);
+    }
+    return (hi0 - lo0) * (hi1 - lo1);
+  };
+  double best_c = 1, best_s = 0, best = area_along(1, 0);
+  for (std::size_t e = 0; e < tried; ++e) {
+    const auto& a = hull[edges[e].second];
+    const auto& b = hull[(edges[e].second + 1) % hull.size()];
+    const double dx = b[0] - a[0], dy = b[1] - a[1], len = std::sqrt(dx * dx + dy * dy);
+    if (!(len > 0)) continue;
+    if (const double area = area_along(dx / len, dy / len); area < 0.999 * best) {
+      best = area, best_c = dx / len, best_s = dy / len;
+    }
+  }
+  fit.rect_area = best;
+  // The wedge cut: the normal of the longest hull edge at an angle to both sides of the rectangle.
+  double longest = 0;
+  for (std::size_t i = 0; i < hull.size(); ++i) {
+    const auto& a = hull[i];
+    const auto& b = hull[(i + 1) % hull.size()];
+    fit.hull_area += 0.5 * (a[0] * b[1] - a[1] * b[0]);
+    const double dx = b[0] - a[0], dy = b[1] - a[1], len = std::sqrt(dx * dx + dy * dy);
+    if (!(len > longest)) continue;
+    const double along = (dx * best_c + dy * best_s) / len, across = (dy * best_c - dx * best_s) / len;
+    if (std::abs(along) < 1e-4 || std::abs(across) < 1e-4) continue;
+    longest = len;
+    fit.cut[0] = -dy / len, fit.cut[1] = dx / len;
+  }
+  fit.hull_area = std::abs(fit.hull_area);
+  if (best_s == 0) return fit;
+  for (int j = 0; j < 3; ++j) {
+    const double e1 = frame[1][j], e2 = frame[2][j];
+    frame[1][j] = best_c * e1 + best_s * e2;
+    frame[2][j] = -best_s * e1 + best_c * e2;
+  }
+  return fit;
+}
+
+// The corner opposite the shortest edge (the first of equals): where a sliver's pieces start.
+int apex_of(const std::array<Vec3d, 3>& t) {
+  double shortest = INFINITY;
+  int apex = 0;
+  for (int k = 0; k < 3; ++k) {
+    const double e = dist_sq(t[(k + 1) % 3], t[(k + 2) % 3]);
+    if (e < shortest) shortest = e, apex = k;
+  }
+  return apex;
+}
+
+// How far a piece's computed corners may be from the exact slab through rounding, with a wide margin: its box and
+// oriented-box extents are widened by this, so that every point of the triangle is inside some piece's boxes.
+double piece_margin(const std::array<Vec3d, 3>& t) {
+  double m = 0;
+  for (const Vec3d& q : t) m = std::max({m, std::abs(q[0]), std::abs(q[1]), std::abs(q[2])});
+  return 0x1p-44 * m;
+}
+
+// Axis-aligned box of a piece of triangle t, widened by the rounding margin but never beyond t's own box.
+Box piece_box(const std::array<Vec3d, 3>& t, BvhPiece piece) {
+  Box whole;
+  for (const Vec3d& q : t) whole.add(q);
+  if (piece.count <= 1) return whole;
+  Box b;
+  for (const Vec3d& q : triangle_piece(t, piece)) b.add(q);
+  const double m = piece_margin(t);
+  for (int i = 0; i < 3; ++i) {
+    b.min[i] = std::max(b.min[i] - m, whole.min[i]);
+    b.max[i] = std::min(b.max[i] + m, whole.max[i]);
+  }
+  return b;
+}
+
+// How many pieces triangle t would like: enough that each piece's box is about kSplitRatio times the piece's
+// area where the triangle is a long sliver at an angle (the square root: a slab's box shrinks with the square
+// of its length, its area only linearly), 1 for a compact triangle or one lying in an axis plane.
+std::uint32_t wanted_pieces(const std::array<Vec3d, 3>& t, const std::array<std::uint32_t, 3>& valence) {
+  Box box;
+  for (const Vec3d& q : t) box.add(q);
+  const Vec3d n = cross(t[1] - t[0], t[2] - t[0]);
+  const double area = 0.5 * std::sqrt(dot(n, n));
+  const double ratio = box.half_area() / area;  // +inf for a segment at an angle, NaN for a point
+  if (!(ratio > kSplitRatio)) return 1;
+  if (valence[apex_of(t)] > kFanValence) return 1;
+  const double k = std::ceil(std::sqrt(ratio / kSplitRatio));
+  return k >= kMaxPieces ? kMaxPieces : static_cast<std::uint32_t>(k);
 }
 
 struct Ref {
   Box box;
   Vec3d centroid;
   std::uint32_t triangle;
+  BvhPiece piece;
 };
 
 float round_down(double x) {
@@ -203,7 +365,16 @@ double oriented_dist_sq(const BvhOrientedBox& o, const Vec3d& p) {
     const double e = t < o.lo[k] ? o.lo[k] - t : (t > o.hi[k] ? t - o.hi[k] : 0.0);
     s += e * e;
   }
-  return s * o.shrink;
+  s *= o.shrink;
+  // The wedge cut, with the normal: a second lower bound, on the distance to the box's part between its slabs.
+  const double t = double{o.cut[0]} * d0 + double{o.cut[1]} * d1 + double{o.cut[2]} * d2;
+  const double e = t < o.cut_lo ? o.cut_lo - t : (t > o.cut_hi ? t - o.cut_hi : 0.0);
+  if (e > 0) {
+    const double n = double{o.axis[0][0]} * d0 + double{o.axis[0][1]} * d1 + double{o.axis[0][2]} * d2;
+    const double en = n < o.lo[0] ? o.lo[0] - n : (n > o.hi[0] ? n - o.hi[0] : 0.0);
+    s = std::max(s, (e * e + en * en) * o.cut_shrink);
+  }
+  return s;
 }
 
 int bin_of(double c, double lo, double scale) {
@@ -335,6 +506,21 @@ Built build_subtree(std::vector<Ref>& refs, std::vector<BvhNode>& nodes, std::ui
 
 }  // namespace
 
+std::array<Vec3d, 4> triangle_piece(const std::array<Vec3d, 3>& t, BvhPiece piece) {
+  if (piece.count <= 1) return {t[0], t[1], t[2], t[2]};
+  const int apex = apex_of(t);
+  const Vec3d& c = t[apex];
+  const Vec3d& a = t[(apex + 1) % 3];
+  const Vec3d& b = t[(apex + 2) % 3];
+  // The ends are the exact corners; inner cuts are rounded, which piece_margin covers.
+  auto at = [&](std::uint32_t k, const Vec3d& end) {
+    if (k == 0) return c;
+    if (k >= piece.count) return end;
+    return c + (end - c) * (static_cast<double>(k) / piece.count);
+  };
+  return {at(piece.index, a), at(piece.index, b), at(piece.index + 1u, a), at(piece.index + 1u, b)};
+}
+
 TrianglePoint closest_point_on_triangle(const Vec3d& p, const Vec3d& a, const Vec3d& b, const Vec3d& c) {
   // Ericson's region tests, in his order and notation. Each early return is one Voronoi region.
   const Vec3d ab = b - a, ac = c - a, ap = p - a;
@@ -397,16 +583,52 @@ TriangleBvh::TriangleBvh(std::span<const Vec3d> positions, std::span<const std::
   const std::size_t triangles = indices.size() / 3;
   slot_of_.assign(triangles, kInvalidIndex);
 
-  std::vector<Ref> refs;
-  refs.reserve(triangles);
+  // Pieces wanted per triangle in the tree (0: left out), then the largest per-triangle cap that keeps the extra
+  // pieces within the budget, so that the longest slivers are split most.
+  std::vector<std::uint32_t> valence(positions.size(), 0);
+  for (const std::uint32_t v : indices_) ++valence[v];
+  std::vector<std::uint32_t> pieces(triangles, 0);
+  std::size_t finite = 0;
   for (std::size_t t = 0; t < triangles; ++t) {
     const std::array<Vec3d, 3> corners = triangle(static_cast<std::uint32_t>(t));
     if (!is_finite(corners[0]) || !is_finite(corners[1]) || !is_finite(corners[2])) continue;
-    Ref r;
-    for (const Vec3d& q : corners) r.box.add(q);
-    r.centroid = (corners[0] + corners[1] + corners[2]) * (1.0 / 3.0);
-    r.triangle = static_cast<std::uint32_t>(t);
-    refs.push_back(r);
+    const std::uint32_t* v = &indices_[3 * t];
+    pieces[t] = wanted_pieces(corners, {valence[v[0]], valence[v[1]], valence[v[2]]});
+    ++finite;
+  }
+  const auto budget = static_cast<std::size_t>(kSplitExtra * static_cast<double>(finite));
+  auto extra_under = [&](std::uint32_t cap) {
+    std::size_t extra = 0;
+    for (const std::uint32_t k : pieces) extra += k > 1 ? std::min(k, cap) - 1 : 0;
+    return extra;
+  };
+  std::uint32_t cap = kMaxPieces;
+  if (extra_under(cap) > budget) {
+    std::uint32_t lo = 1, hi = kMaxPieces;  // extra_under(lo) = 0 fits, extra_under(hi) does not
+    while (hi - lo > 1) {
+      const std::uint32_t mid = (lo + hi) / 2;
+      (extra_under(mid) <= budget ? lo : hi) = mid;
+    }
+    cap = lo;
+  }
+
+  std::vector<Ref> refs;
+  refs.reserve(finite + extra_under(cap));
+  bool split = false;
+  for (std::size_t t = 0; t < triangles; ++t) {
+    if (pieces[t] == 0) continue;
+    const std::array<Vec3d, 3> corners = triangle(static_cast<std::uint32_t>(t));
+    const auto count = static_cast<std::uint16_t>(std::min(pieces[t], cap));
+    split = split || count > 1;
+    for (std::uint16_t k = 0; k < count; ++k) {
+      Ref r;
+      r.piece = {k, count};
+      r.box = piece_box(corners, r.piece);
+      r.centroid = (r.box.min + r.box.max) * 0.5;
+      if (count == 1) r.centroid = (corners[0] + corners[1] + corners[2]) * (1.0 / 3.0);
+      r.triangle = static_cast<std::uint32_t>(t);
+      refs.push_back(r);
+    }
   }
   if (refs.empty()) return;
 
@@ -420,10 +642,12 @@ TriangleBvh::TriangleBvh(std::span<const Vec3d> positions, std::span<const std::
 
   slot_corners_.reserve(refs.size());
   slot_triangle_.reserve(refs.size());
+  if (split) slot_piece_.reserve(refs.size());
   for (std::size_t s = 0; s < refs.size(); ++s) {
     slot_corners_.push_back(triangle(refs[s].triangle));
     slot_triangle_.push_back(refs[s].triangle);
-    slot_of_[refs[s].triangle] = static_cast<std::uint32_t>(s);
+    if (split) slot_piece_.push_back(refs[s].piece);
+    if (slot_of_[refs[s].triangle] == kInvalidIndex) slot_of_[refs[s].triangle] = static_cast<std::uint32_t>(s);
   }
   neighbor_ = edge_neighbors(indices_, slot_of_);
   fit_oriented_boxes();
@@ -441,12 +665,45 @@ void TriangleBvh::fit_oriented_boxes() {
     std::uint32_t begin, end;  // slot range
     Moments moments;
   };
+  // The corners of what slot s stands for: its triangle's, or its piece's (then also the rounding margin).
+  auto slot_points = [&](std::uint32_t s, auto&& f) {
+    const BvhPiece piece = slot_piece(s);
+    if (piece.count <= 1) {
+      for (const Vec3d& q : slot_corners_[s]) f(q);
+      return 0.0;
+    }
+    for (const Vec3d& q : triangle_piece(slot_corners_[s], piece)) f(q);
+    return piece_margin(slot_corners_[s]);
+  };
+  std::vector<std::array<double, 2>> plane, hull;  // scratch for turn_to_small_rectangle
   // Fits child i of `node` (slots [f.begin, f.end)) an oriented box and keeps it where it pays.
   auto fit = [&](std::uint32_t node, int i, const Fitted& f) {
     if (f.end - f.begin > kOrientedMaxTriangles || f.moments.n < 3) return;
     const Moments& m = f.moments;
-    double frame[3][3];
-    if (!principal_frame(m, frame)) return;
+    double frame[3][3], spread[3];
+    if (!principal_frame(m, frame, spread)) return;
+    double e1[3], e2[3];
+    for (int j = 0; j < 3; ++j) e1[j] = frame[1][j], e2[j] = frame[2][j];
+    PlaneFit pf;
+    // Only elongated groups (slivers, wedges of them) are worth the hull; compact patches of a clean surface keep
+    // their principal axes, which fit them about as well.
+    if (spread[2] > kElongated * spread[1]) {
+      plane.clear();
+      for (std::uint32_t s = f.begin; s < f.end; ++s) {
+        slot_points(s, [&](const Vec3d& q) {
+          const Vec3d d = q - centre;
+          plane.push_back({frame[1][0] * d[0] + frame[1][1] * d[1] + frame[1][2] * d[2],
+                           frame[2][0] * d[0] + frame[2][1] * d[1] + frame[2][2] * d[2]});
+        });
+      }
+      pf = turn_to_small_rectangle(frame, plane, hull);
+    }
+    const bool wedge = (pf.cut[0] != 0 || pf.cut[1] != 0) && pf.hull_area < kWedgeCutRatio * pf.rect_area;
+    const bool wedge_keeps = wedge && pf.hull_area < kWedgeKeepRatio * pf.rect_area;
+    double cut[3] = {0, 0, 0};
+    if (wedge) {
+      for (int j = 0; j < 3; ++j) cut[j] = pf.cut[0] * e1[j] + pf.cut[1] * e2[j];
+    }
     BvhOrientedBox box;
     double a[3][3];
     for (int k = 0; k < 3; ++k) {
@@ -469,29 +726,53 @@ void TriangleBvh::fit_oriented_boxes() {
       g = std::max(g, row);
     }
     box.shrink = round_down(1.0 / (1.0 + g + 1e-12));
+    double c[3];
+    for (int j = 0; j < 3; ++j) {
+      box.cut[j] = static_cast<float>(cut[j]);
+      c[j] = box.cut[j];
+    }
+    {
+      const double a0c = a[0][0] * c[0] + a[0][1] * c[1] + a[0][2] * c[2];
+      const double cc = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
+      const double a00 = a[0][0] * a[0][0] + a[0][1] * a[0][1] + a[0][2] * a[0][2];
+      const double gc = std::max(std::abs(a00 - 1) + std::abs(a0c), std::abs(cc - 1) + std::abs(a0c));
+      box.cut_shrink = round_down(1.0 / (1.0 + gc + 1e-12));
+    }
+    double cut_lo = wedge ? INFINITY : 0.0, cut_hi = wedge ? -INFINITY : 0.0;
 
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    double margin = 0;
     for (std::uint32_t s = f.begin; s < f.end; ++s) {
-      for (const Vec3d& q : slot_corners_[s]) {
+      margin = std::max(margin, slot_points(s, [&](const Vec3d& q) {
         const double d0 = q[0] - box.origin[0], d1 = q[1] - box.origin[1], d2 = q[2] - box.origin[2];
         for (int k = 0; k < 3; ++k) {
           const double t = a[k][0] * d0 + a[k][1] * d1 + a[k][2] * d2;
           lo[k] = std::min(lo[k], t);
           hi[k] = std::max(hi[k], t);
         }
-      }
+        if (wedge) {
+          const double t = c[0] * d0 + c[1] * d1 + c[2] * d2;
+          cut_lo = std::min(cut_lo, t);
+          cut_hi = std::max(cut_hi, t);
+        }
+      }));
     }
+    // A point within `margin` of a piece's corners along each axis is within 2 margin along a near-unit axis.
     for (int k = 0; k < 3; ++k) {
-      box.lo[k] = round_down(lo[k]);
-      box.hi[k] = round_up(hi[k]);
+      const double r = 2 * margin + 0x1p-48 * std::max(std::abs(lo[k]), std::abs(hi[k]));  // and the projection's
+      box.lo[k] = lo[k] - r;
+      box.hi[k] = hi[k] + r;
     }
+    const double r = 2 * margin + 0x1p-48 * std::max(std::abs(cut_lo), std::abs(cut_hi));
+    box.cut_lo = wedge ? cut_lo - r : 0.0;
+    box.cut_hi = wedge ? cut_hi + r : 0.0;
     const BvhNode& n = nodes_[node];
     auto half_area = [](double e0, double e1, double e2) { return e0 * e1 + e1 * e2 + e2 * e0; };
     const double oriented = half_area(double{box.hi[0]} - box.lo[0], double{box.hi[1]} - box.lo[1],
                                       double{box.hi[2]} - box.lo[2]);
     const double aligned = half_area(double{n.max[i][0]} - n.min[i][0], double{n.max[i][1]} - n.min[i][1],
                                      double{n.max[i][2]} - n.min[i][2]);
-    if (!(oriented < kOrientedKeepRatio * aligned)) return;
+    if (!(oriented < kOrientedKeepRatio * aligned) && !wedge_keeps) return;
     node_obb_[node][i] = static_cast<std::uint32_t>(obbs_.size());
     obbs_.push_back(box);
   };
@@ -501,9 +782,7 @@ void TriangleBvh::fit_oriented_boxes() {
     if (count > 0) {
       f.begin = index;
       f.end = index + count;
-      for (std::uint32_t s = index; s < index + count; ++s) {
-        for (const Vec3d& q : slot_corners_[s]) f.moments.add(q - centre);
-      }
+      for (std::uint32_t s = index; s < index + count; ++s) slot_points(s, [&](const Vec3d& q) { f.moments.add(q - centre); });
       return f;
     }
     const BvhNode& n = nodes_[index];
@@ -566,8 +845,10 @@ BvhHit TriangleBvh::search(const Vec3d& p, BvhHit best, const BvhHit& known, Bvh
     // Re-checked on pop: the best distance may have shrunk since this entry was pushed.
     if (!(e.dist_sq < bound)) continue;
     if (e.count > 0) {
-      work.triangles += e.count;
       for (std::uint32_t s = e.index; s < e.index + e.count; ++s) {
+        // Neighbouring pieces of one sliver often share a leaf: measured once.
+        if (s > e.index && slot_triangle_[s] == slot_triangle_[s - 1]) continue;
+        ++work.triangles;
         const std::array<Vec3d, 3>& t = slot_corners_[s];
         const TrianglePoint tp = closest_point_on_triangle(p, t[0], t[1], t[2]);
         const double d = dist_sq(p, tp.point);
@@ -673,8 +954,9 @@ bool TriangleBvh::any_within(const Vec3d& p, double max_distance, std::uint32_t&
     --top;
     const std::uint32_t index = stack[top][0], count = stack[top][1];
     if (count > 0) {
-      work.triangles += count;
       for (std::uint32_t s = index; s < index + count; ++s) {
+        if (s > index && slot_triangle_[s] == slot_triangle_[s - 1]) continue;
+        ++work.triangles;
         const std::array<Vec3d, 3>& t = slot_corners_[s];
         if (dist_sq(p, closest_point_on_triangle(p, t[0], t[1], t[2]).point) <= limit_sq) {
           hint = slot_triangle_[s];

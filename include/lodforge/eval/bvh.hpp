@@ -7,16 +7,15 @@
 // (attribute and UV deviation, conservative error checks). Queries are const and allocation-free, so any
 // number of threads may query one BVH at once.
 //
-// Hostile input stays cheap where the geometry allows: distances within 2^-26 of the largest coordinate of the
-// best one (a quarter of the precision of float positions) count as ties, so a point on a surface that many
-// triangles overlap (a fanned non-convex polygon, faces written many times over) stops at the first; and a
-// hinted query walks from the hint across the mesh's edges first, so it starts from the answer even where many
-// boxes overlap.
-// Children whose triangles are slivers at an angle to the axes also get an oriented box (BvhOrientedBox), so that
-// a query off the surface next to a fine cone fanned from its apex opens about what it would on a clean grid.
-// What stays slow: thousands of coplanar slivers nested inside each other (one fanned polygon turned out of the
-// axis planes), whose distances from a point off the surface differ only by float rounding, and long parallel
-// needles at an angle whose centroids the axis-aligned split interleaves (docs/performance.md).
+// Hostile input stays cheap where the geometry allows: distances within 2^-24 of the largest coordinate of the
+// best one (the precision of float positions) count as ties, so a point on a surface that many triangles overlap
+// (a fanned non-convex polygon, faces written many times over) stops at the first; and a hinted query walks from
+// the hint across the mesh's edges first, so it starts from the answer even where many boxes overlap.
+// Children whose triangles are slivers at an angle to the axes also get an oriented box (BvhOrientedBox), turned
+// to the smallest rectangle around them and, where they form a wedge (slivers fanned from one corner), cut along
+// the wedge's side too, so that a query off the surface next to a fine cone, or next to thousands of nested
+// slivers, opens about what it would on a clean grid. Long slivers at an angle that are not fanned from a shared
+// corner (parallel needles) enter the tree as several pieces, each with its own box (BvhPiece).
 #pragma once
 
 #include <array>
@@ -39,6 +38,19 @@ struct TrianglePoint {
 // triangles (collinear corners, repeated corners) are handled: the answer is the closest point of the segment
 // or point they collapse to, never NaN.
 TrianglePoint closest_point_on_triangle(const Vec3d& p, const Vec3d& a, const Vec3d& b, const Vec3d& c);
+
+// Which part of its triangle a slot of a TriangleBvh covers: piece `index` of `count` slabs cut across the
+// triangle's length (see triangle_piece); {0, 1} is the whole triangle.
+struct BvhPiece {
+  std::uint16_t index = 0, count = 1;
+};
+
+// Corners of `piece` of triangle t: the slab between the fractions index/count and (index + 1)/count of the way
+// from the corner opposite the shortest edge (the apex) to that edge, as {p, q, r, s} with p, r on the edge from
+// the apex to the next corner and q, s on the edge to the one after (p = q at the apex). The whole triangle
+// ({0, 1}) is {t0, t1, t2, t2}. Every point of t lies in one of its pieces (up to the rounding of the cuts, which
+// the tree's boxes allow for).
+std::array<Vec3d, 4> triangle_piece(const std::array<Vec3d, 3>& t, BvhPiece piece);
 
 struct BvhHit {
   std::uint32_t triangle = kInvalidIndex;  // triangle number as given to the constructor; kInvalidIndex: none
@@ -75,11 +87,19 @@ struct alignas(64) BvhNode {
 // axis-aligned box: slivers and thin slabs at an angle to the axes, whose axis-aligned boxes overlap far and
 // wide. The child's corners q satisfy lo[k] <= axis[k] . (q - origin) <= hi[k]; `shrink` (<= 1) scales the
 // squared distance so that it stays a lower bound although the float axes are only nearly orthonormal.
+// Where the points seen along the box's normal (axis 0) form a wedge, as slivers fanned from one corner do, one
+// more direction `cut` in the box's plane bounds them too: cut_lo <= cut . (q - origin) <= cut_hi, with
+// `cut_shrink` for the pair (axis 0, cut) as `shrink` is for the three axes; cut = 0 where none is kept.
 struct BvhOrientedBox {
   float axis[3][3];
   float origin[3];
-  float lo[3], hi[3];
   float shrink;
+  float cut[3];
+  float cut_shrink;
+  // Extents in double: float ones, rounded outward by up to 2^-24 of their size, would make a corner that
+  // thousands of slivers share (a fan's apex) look nearer than it is by more than the search's tie slack.
+  double lo[3], hi[3];
+  double cut_lo, cut_hi;
 };
 
 class TriangleBvh {
@@ -97,7 +117,7 @@ class TriangleBvh {
   Bounds3 bounds() const;
 
   // The closest point on any triangle: the exact closest point (up to rounding) of a triangle no other one is
-  // closer than by more than 2^-26 (1.5e-8) of the largest coordinate of the tree or p. Among equally close
+  // closer than by more than 2^-24 (6e-8) of the largest coordinate of the tree or p. Among equally close
   // triangles, which one is returned is unspecified (but the same for the same query).
   BvhHit closest_point(const Vec3d& p) const;
   // The same distance, with triangle `hint` (for example the previous answer of a spatially coherent stream of
@@ -126,7 +146,8 @@ class TriangleBvh {
   std::uint32_t neighbor(std::uint32_t t, int k) const { return neighbor_[t][k]; }
 
   // The tree (for tests and debugging). The root is a child reference like those inside nodes: node
-  // root().index when root().count == 0 (then node 0), else a single leaf. Slot s is triangle slot_triangle(s).
+  // root().index when root().count == 0 (then node 0), else a single leaf. Slot s is piece slot_piece(s) of
+  // triangle slot_triangle(s); the boxes above a slot contain its piece, and a leaf measures the whole triangle.
   struct Root {
     float min[3] = {}, max[3] = {};  // rounded outward like node boxes
     std::uint32_t index = 0, count = 0;
@@ -139,7 +160,12 @@ class TriangleBvh {
     return k == kInvalidIndex ? nullptr : &obbs_[k];
   }
   std::size_t oriented_box_count() const { return obbs_.size(); }
+  // Leaf slots: one per triangle in the tree, more for long slivers entered as several pieces.
+  std::size_t slot_count() const { return slot_triangle_.size(); }
   std::uint32_t slot_triangle(std::uint32_t slot) const { return slot_triangle_[slot]; }
+  // The part of its triangle slot `slot` stands for in the boxes above it (the leaf test measures the whole
+  // triangle).
+  BvhPiece slot_piece(std::uint32_t slot) const { return slot_piece_.empty() ? BvhPiece{} : slot_piece_[slot]; }
 
  private:
   // Ordered depth-first descent (nearer child first, boxes not nearer than the best so far by more than a
@@ -161,7 +187,8 @@ class TriangleBvh {
   std::vector<BvhOrientedBox> obbs_;
   std::vector<std::array<Vec3d, 3>> slot_corners_;  // triangles in leaf order, for locality
   std::vector<std::uint32_t> slot_triangle_;        // slot -> triangle number
-  std::vector<std::uint32_t> slot_of_;              // triangle number -> slot, kInvalidIndex if left out
+  std::vector<BvhPiece> slot_piece_;                // slot -> piece of its triangle; empty where none is split
+  std::vector<std::uint32_t> slot_of_;              // triangle number -> its first slot, kInvalidIndex if left out
   std::vector<std::array<std::uint32_t, 3>> neighbor_;  // triangle -> one across the edge opposite corner k
   std::vector<Vec3d> positions_;                    // as given, for triangle()
   std::vector<std::uint32_t> indices_;
