@@ -56,20 +56,16 @@ constexpr double kStayFraction = 0.25;
 bool CollapseMesh::face_within(const Vec3d& p, const Vec3d& q, const Vec3d& r, std::uint32_t& hint) const {
   const double reach = kSampleReach * guard_budget_;
   auto near = [&](const Vec3d& y) { return guard_bvh_->any_within(y, reach, hint); };
+  // The dense grid skips the points of the measurement's grid that it shares (the same u, v: the same point).
   return for_each_face_sample(p, q, r, guard_spacing_, near) &&
-         for_each_grid_point(p, q, r, kDenseSpacing * guard_spacing_, near);
+         for_each_grid_point(p, q, r, kDenseSpacing * guard_spacing_, near, grid_steps(p, q, r, guard_spacing_));
 }
 
 double CollapseMesh::guarded_face_bound(const Vec3d& p, const Vec3d& q, const Vec3d& r, double corners) const {
   // Every point of the triangle is within cover(pqr) / steps of a point of the lattice the guard tested (the
   // dense grid's, its corners included; the edge midpoints where the triangle is too small for a grid), and the
   // distance to a surface is 1-Lipschitz.
-  const double spacing = kDenseSpacing * guard_spacing_;
-  const double longest = std::sqrt(std::max({dot(q - p, q - p), dot(r - q, r - q), dot(p - r, p - r)}));
-  int steps = guard_spacing_ > 0 ? 2 : 1;
-  if (spacing > 0 && longest > spacing) {
-    steps = std::max(2, static_cast<int>(std::min(std::ceil(longest / spacing), double{kMaxGrid})));
-  }
+  const int steps = std::max(grid_steps(p, q, r, kDenseSpacing * guard_spacing_), guard_spacing_ > 0 ? 2 : 1);
   return std::max(corners, kSampleReach * guard_budget_) + cover_radius(p, q, r) / steps + guard_rounding_;
 }
 

@@ -120,18 +120,26 @@ void small_sort(T* p, std::size_t n) {
   }
 }
 
-// Calls f(p) for the points of a grid of about `spacing` inside triangle abc where it is longer than that (at
-// most kMaxGrid steps per edge; not the corners), until f returns false; false if it did.
+// The steps per edge of the grid for_each_grid_point lays on triangle abc: about `spacing` apart, at most
+// kMaxGrid; 0 (no grid) where the triangle is no longer than that.
 inline constexpr int kMaxGrid = 6;
-template <typename F>
-bool for_each_grid_point(const Vec3d& a, const Vec3d& b, const Vec3d& c, double spacing, F&& f) {
-  if (!(spacing > 0)) return true;
+inline int grid_steps(const Vec3d& a, const Vec3d& b, const Vec3d& c, double spacing) {
+  if (!(spacing > 0)) return 0;
   const double longest = std::sqrt(std::max({dot(b - a, b - a), dot(c - b, c - b), dot(a - c, a - c)}));
-  if (!(longest > spacing)) return true;  // small: its corners and centroid are close enough together
-  const int steps = static_cast<int>(std::min(std::ceil(longest / spacing), double{kMaxGrid}));
+  if (!(longest > spacing)) return 0;  // small: its corners and centroid are close enough together
+  return static_cast<int>(std::min(std::ceil(longest / spacing), double{kMaxGrid}));
+}
+
+// Calls f(p) for the points of the grid of grid_steps() inside triangle abc (not the corners), until f returns
+// false; false if it did. Points of a coarser grid of `skip_steps` steps on the same triangle (bit for bit the
+// same points, already visited by the caller) are skipped.
+template <typename F>
+bool for_each_grid_point(const Vec3d& a, const Vec3d& b, const Vec3d& c, double spacing, F&& f, int skip_steps = 0) {
+  const int steps = grid_steps(a, b, c, spacing);
   for (int i = 0; i <= steps; ++i) {
     for (int j = 0; i + j <= steps; ++j) {
       if (i == steps || j == steps || i + j == 0) continue;  // the corners
+      if (skip_steps > 0 && (i * skip_steps) % steps == 0 && (j * skip_steps) % steps == 0) continue;
       const double u = double(i) / steps, v = double(j) / steps;
       if (!f(a + (b - a) * u + (c - a) * v)) return false;
     }
