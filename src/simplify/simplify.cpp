@@ -16,6 +16,7 @@
 #include "engines.hpp"
 #include "lodforge/quad/polychord_collapse.hpp"
 #include "lodforge/quad/quad_recovery.hpp"
+#include "lodforge/tiling/tiling.hpp"
 
 namespace lodforge {
 
@@ -55,6 +56,9 @@ std::vector<std::string> SimplifyOptions::validate() const {
   }
   if (multiple_choice_k < 1 || multiple_choice_k > 256) {
     problems.push_back("multiple_choice_k must be in [1, 256], got " + std::to_string(multiple_choice_k));
+  }
+  if (tile_triangles < 100) {
+    problems.push_back("tile_triangles must be at least 100, got " + std::to_string(tile_triangles));
   }
   return problems;
 }
@@ -100,6 +104,15 @@ const char* seam_mode_name(SeamMode m) {
     case SeamMode::keep: return "keep";
     case SeamMode::relax: return "relax";
     case SeamMode::relax_materials: return "relax_materials";
+  }
+  return "unknown";
+}
+
+const char* tiling_mode_name(TilingMode m) {
+  switch (m) {
+    case TilingMode::off: return "off";
+    case TilingMode::automatic: return "auto";
+    case TilingMode::on: return "on";
   }
   return "unknown";
 }
@@ -374,6 +387,13 @@ SimplifyResult simplify(const Mesh& mesh, const SimplifyOptions& options, const 
   if (!all_triangles) triangulated_copy = triangulated(mesh);
   const Mesh& tris = all_triangles ? mesh : triangulated_copy;
   const double triangulate_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  if (tiling::applies(tris, options, policies)) {
+    SimplifyResult r = tiling::simplify_tiled(tris, options);
+    r.triangles_before = mesh.triangle_count();
+    r.quads_before = kinds.quads;
+    r.timings.setup_ms += triangulate_ms;
+    return r;
+  }
 
   const collapse::LoggedEngine engine =
       options.engine == Engine::multiple_choice ? collapse::run_multiple_choice : collapse::run_edge_collapse;

@@ -1,0 +1,56 @@
+// Tiled simplification of huge meshes: the mesh is cut into spatial tiles by triangle centroid, each tile is
+// simplified by the chosen triangle engine with its cut-border vertices locked (in parallel, one task per
+// tile), the tiles are stitched back (border vertices never moved, so they weld exactly), and the mesh is cut
+// again on a grid shifted by part of a tile so that every former border is interior, until the target is met.
+// simplify() dispatches here by SimplifyOptions::tiling (docs/tiling.md).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "lodforge/core/mesh.hpp"
+#include "lodforge/simplify/simplify.hpp"
+
+namespace lodforge::tiling {
+
+// Triangles from which TilingMode::automatic tiles a mesh.
+inline constexpr std::size_t kAutoThresholdTriangles = 1'000'000;
+// Passes at most (cut, simplify, stitch); the last one runs untiled.
+inline constexpr int kMaxPasses = 8;
+// The first tiled pass takes the mesh to this many times the target; the rest is made by an untiled run once
+// the mesh has at most max(tile_triangles, min(1.5 x that, kFinalTiles x tile_triangles)) triangles, else by
+// further tiled passes straight to the target.
+inline constexpr std::size_t kOversample = 3;
+inline constexpr std::size_t kFinalTiles = 4;
+
+// Whether simplify() takes the tiled path for this (triangulated, repeat-free) mesh: tiling on, or automatic
+// and at least kAutoThresholdTriangles triangles; a triangle engine (edge_collapse, multiple_choice); no error
+// budget (budgets stay on the untiled path, which verifies them); no caller policies.
+bool applies(const Mesh& triangles, const SimplifyOptions& options, const CollapsePolicies& policies);
+
+// One cut of a mesh into tiles: cell size `cell` on a grid whose origin is the bounding box's minimum moved
+// back by `shift` cells on every axis; each triangle goes to the cell of its centroid. Tiles are the occupied
+// cells in lexicographic cell order; each lists its triangles in ascending order.
+struct TileCut {
+  double cell = 0;
+  double shift = 0;
+  std::vector<std::vector<std::uint32_t>> tiles;  // triangle ids per tile
+  std::vector<std::uint8_t> border;               // per vertex: used by triangles of two or more tiles
+};
+// `triangles` holds triangles only. `tile_triangles` sets the cell size: cells of about that many triangles,
+// from the surface area per triangle.
+TileCut cut(const Mesh& triangles, std::size_t tile_triangles, double shift);
+// The grid shift of pass `pass` (0, 1/2, 1/4, 3/4, ... of a cell): consecutive passes never share a cut plane.
+double pass_shift(int pass);
+
+// The sub-mesh of `triangles` made of `faces` (ascending): the vertices and wedges they use, in ascending
+// order, with every vertex and wedge attribute; materials, groups, formats and the name as the source's.
+// `vertices` receives the source vertex of each sub-mesh vertex.
+Mesh extract(const Mesh& triangles, const std::vector<std::uint32_t>& faces, std::vector<std::uint32_t>& vertices);
+
+// The tiled simplification (simplify() calls it when applies() holds). `triangles` holds triangles only and
+// no repeated faces. Deterministic: the output is the same for any thread count.
+SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& options);
+
+}  // namespace lodforge::tiling
