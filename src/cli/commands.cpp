@@ -146,6 +146,7 @@ std::string with_option_names(const std::string& problem) {
       {"priority_lock", "--priority-lock"},
       {"skin_weight_threshold", "--skin-threshold"},
       {"skin_max_distance", "--skin-max-distance"},
+      {"tile_triangles", "--tile-triangles"},
   };
   for (const auto& [field, option] : kNames) {
     const std::string f(field);
@@ -237,6 +238,7 @@ void register_simplify(CLI::App& app) {
     double max_error_rel = -1;
     bool keep_attributes = false;
     std::string seams = "relax";
+    std::string tiling = "auto";
     bool evaluate = false;
     bool no_verify = false;
   };
@@ -286,9 +288,19 @@ void register_simplify(CLI::App& app) {
   cmd->add_option("--skin-max-distance", a->opt.skin_max_distance,
                   "vertices of different dominant bones merge only below this L1 weight distance")
       ->default_val(a->opt.skin_max_distance);
+  cmd->add_option("--tiling", a->tiling,
+                  "auto | on | off: cut huge meshes into spatial tiles simplified in parallel with locked shared "
+                  "borders, stitched and re-cut on a shifted grid (auto: from 1,000,000 triangles; triangle "
+                  "engines without an error budget; docs/tiling.md)")
+      ->default_val(a->tiling)
+      ->check(CLI::IsMember({"auto", "on", "off"}));
+  cmd->add_option("--tile-triangles", a->opt.tile_triangles,
+                  "triangles per tile on the tiled path (at least 100)")
+      ->default_val(a->opt.tile_triangles);
   cmd->add_flag("--eval", a->evaluate, "measure the result against the input (Hausdorff, mean, RMS)");
   cmd->callback([a] {
     SimplifyOptions opt = a->opt;
+    opt.tiling = a->tiling == "on" ? TilingMode::on : a->tiling == "off" ? TilingMode::off : TilingMode::automatic;
     if (a->keep_attributes) opt.attribute_placement = AttributePlacement::keep;
     opt.seams = a->seams == "keep" ? SeamMode::keep : a->seams == "relax" ? SeamMode::relax : SeamMode::relax_materials;
     opt.max_error_rel = a->max_error_rel;
@@ -338,6 +350,8 @@ void register_simplify(CLI::App& app) {
                     i, r.triangles_before, r.triangles_after, percent(r.qem_error_abs),
                     stop_reason_name(r.stop_reason),
                     r.timings.setup_ms + r.timings.initial_costs_ms + r.timings.collapse_ms + r.timings.output_ms);
+        if (r.tiling_passes > 0)
+          std::printf("  tiled: %zu pass(es), %zu tile run(s)\n", r.tiling_passes, r.tile_runs);
         if (r.seam_stage != SeamStage::strict)
           std::printf("  seams relaxed: stage %s\n", seam_stage_name(r.seam_stage));
         if (!r.floors.empty()) {

@@ -292,6 +292,29 @@ TEST(Cli, SimplifyRejectsInvalidOptions) {
   EXPECT_FALSE(fs::exists(dir / "x.ply"));
 }
 
+// --tiling on cuts even a small mesh into tiles (and says so); off and the automatic default below the threshold
+// do not; a tile size below 100 is refused by its option name.
+TEST(Cli, SimplifyTilesOnRequest) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_simplify_tiling");
+  ASSERT_EQ(run_cli("demo " + dir.string()).exit_code, 0);
+  const std::string in = (dir / "environment/rock.ply").string(), out = (dir / "rock_tiled.ply").string();
+  const CliRun on = run_cli("simplify " + in + " " + out + " --ratio 0.25 --tiling on --tile-triangles 100");
+  ASSERT_EQ(on.exit_code, 0) << on.output;
+  EXPECT_NE(on.output.find("tiled: "), std::string::npos) << on.output;
+  EXPECT_TRUE(fs::exists(out));
+  for (const char* mode : {"off", "auto"}) {
+    const CliRun r = run_cli("simplify " + in + " " + out + " --ratio 0.25 --tiling " + mode);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_EQ(r.output.find("tiled: "), std::string::npos) << r.output;
+  }
+  const CliRun small = run_cli("simplify " + in + " " + (dir / "x.ply").string() + " --tiling on --tile-triangles 5");
+  EXPECT_EQ(small.exit_code, 2);
+  EXPECT_NE(small.output.find("error: --tile-triangles must be at least 100, got 5"), std::string::npos) << small.output;
+  const CliRun bad = run_cli("simplify " + in + " " + (dir / "x.ply").string() + " --tiling sometimes");
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_FALSE(fs::exists(dir / "x.ply"));
+}
+
 }  // namespace
 
 namespace {
