@@ -405,7 +405,7 @@ SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& opti
     total.vetoes += r.vetoes;
     total.seam_stage = std::max(total.seam_stage, r.seam_stage);
   };
-  bool stopped = false, finished = false;
+  bool stopped = false, finished = false, over_budget = false;
   for (int pass = 0; pass < kMaxPasses && !finished; ++pass) {
     const std::size_t n = mesh->face_count();
     if (n <= target) break;
@@ -434,6 +434,7 @@ SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& opti
       add_stats(r);
       total.floors = r.floors;
       stopped = r.stop_reason == StopReason::stopped;
+      over_budget = over_budget || r.stop_reason == StopReason::error_budget;
       current = std::move(r.mesh);
       mesh = &current;
       finished = true;
@@ -461,6 +462,7 @@ SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& opti
     for (const TileRun& r : runs) {
       add_stats(r.result);
       stopped = stopped || r.result.stop_reason == StopReason::stopped;
+      over_budget = over_budget || r.result.stop_reason == StopReason::error_budget;
     }
     Mesh next = stitch(*mesh, runs, locked, options);
     runs.clear();
@@ -477,6 +479,7 @@ SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& opti
   total.qem_error_rel = diagonal > 0.0 ? total.qem_error_abs / diagonal : 0.0;
   total.stop_reason = total.triangles_after <= target ? StopReason::target_reached
                       : stopped                       ? StopReason::stopped
+                      : over_budget                   ? StopReason::error_budget
                                                       : StopReason::no_valid_collapse;
   if (total.stop_reason == StopReason::target_reached) total.floors.clear();
   total.timings.output_ms = 0;

@@ -259,6 +259,22 @@ TEST(TilingSimplify, AutomaticLeavesSmallMeshesToTheEngine) {
   EXPECT_FALSE(applies(m, cluster, {}));
 }
 
+// Without verification an error budget is only the engines' QEM cap: the tiles apply it (relative to the whole
+// mesh), and the run says the budget stopped it.
+TEST(TilingSimplify, UnverifiedBudgetCapsTheTiles) {
+  const Mesh m = make_torus(160, 100);
+  SimplifyOptions o = tiled(0.01, 2000);
+  o.max_error_rel = 1e-4;
+  o.verify_budget = false;
+  ASSERT_TRUE(applies(m, o, {}));
+  const SimplifyResult r = simplify(m, o);
+  EXPECT_GE(r.tiling_passes, 1u);
+  EXPECT_EQ(r.stop_reason, StopReason::error_budget);
+  EXPECT_GT(r.triangles_after, m.face_count() / 100);
+  EXPECT_LT(r.triangles_after, m.face_count());
+  EXPECT_LE(r.qem_error_rel, 1e-4 * (1 + 1e-9));
+}
+
 TEST(TilingSimplify, RejectsTinyTiles) {
   SimplifyOptions o = tiled(0.5, 10);
   EXPECT_FALSE(o.validate().empty());
