@@ -20,6 +20,7 @@
 #include "lodforge/quad/quad_stats.hpp"
 #include "lodforge/simplify/simplify.hpp"
 #include "lodforge/symmetry/symmetry.hpp"
+#include "lodforge/tiling/tiling.hpp"
 
 namespace lodforge::cli {
 namespace {
@@ -344,7 +345,7 @@ void register_simplify(CLI::App& app) {
           mesh_opt.max_error_abs = max_error_rel * diagonal;
           mesh_opt.max_error_rel = -1.0;
         }
-        SimplifyResult r = simplify(src, mesh_opt);
+        SimplifyResult r = simplify_maybe_tiled(src, mesh_opt);
         std::printf("mesh %zu: %zu -> %zu triangles, QEM error %.4f%% of diagonal (a ranking, not a bound), "
                     "stopped: %s, %.1f ms\n",
                     i, r.triangles_before, r.triangles_after, percent(r.qem_error_abs),

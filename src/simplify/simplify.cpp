@@ -16,7 +16,6 @@
 #include "engines.hpp"
 #include "lodforge/quad/polychord_collapse.hpp"
 #include "lodforge/quad/quad_recovery.hpp"
-#include "lodforge/tiling/tiling.hpp"
 
 namespace lodforge {
 
@@ -387,13 +386,6 @@ SimplifyResult simplify(const Mesh& mesh, const SimplifyOptions& options, const 
   if (!all_triangles) triangulated_copy = triangulated(mesh);
   const Mesh& tris = all_triangles ? mesh : triangulated_copy;
   const double triangulate_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  if (tiling::applies(tris, options, policies)) {
-    SimplifyResult r = tiling::simplify_tiled(tris, options);
-    r.triangles_before = mesh.triangle_count();
-    r.quads_before = kinds.quads;
-    r.timings.setup_ms += triangulate_ms;
-    return r;
-  }
 
   const collapse::LoggedEngine engine =
       options.engine == Engine::multiple_choice ? collapse::run_multiple_choice : collapse::run_edge_collapse;

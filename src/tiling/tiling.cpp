@@ -242,13 +242,20 @@ double pass_shift(int pass) {
   return kShifts[pass % 4];
 }
 
-bool applies(const Mesh& triangles, const SimplifyOptions& options, const CollapsePolicies& policies) {
+namespace {
+
+// applies() without the size: whether these options may tile a mesh at all.
+bool may_tile(const SimplifyOptions& options) {
   if (options.tiling == TilingMode::off) return false;
   if (options.engine != Engine::edge_collapse && options.engine != Engine::multiple_choice) return false;
-  if (policies.any()) return false;
-  if (options.verify_budget && (options.max_error_abs >= 0.0 || options.max_error_rel >= 0.0)) return false;
-  if (options.tiling == TilingMode::automatic && triangles.face_count() < kAutoThresholdTriangles) return false;
-  return true;
+  return !(options.verify_budget && (options.max_error_abs >= 0.0 || options.max_error_rel >= 0.0));
+}
+
+}  // namespace
+
+bool applies(const Mesh& triangles, const SimplifyOptions& options) {
+  if (!may_tile(options)) return false;
+  return options.tiling != TilingMode::automatic || triangles.face_count() >= kAutoThresholdTriangles;
 }
 
 TileCut cut(const Mesh& triangles, std::size_t tile_triangles, double shift) {
@@ -488,3 +495,41 @@ SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& opti
 }
 
 }  // namespace lodforge::tiling
+
+namespace lodforge {
+
+SimplifyResult simplify_maybe_tiled(const Mesh& mesh, const SimplifyOptions& options) {
+  // Fan triangulation never adds triangles to a count below the threshold: such meshes skip the checks below.
+  if (!tiling::may_tile(options) ||
+      (options.tiling == TilingMode::automatic && mesh.triangle_count() < tiling::kAutoThresholdTriangles)) {
+    return simplify(mesh, options);
+  }
+  const std::vector<std::string> problems = options.validate();
+  if (!problems.empty()) return simplify(mesh, options);  // throws with the full list
+  // As simplify() does: repeated faces go first, and a ratio target stays a ratio of the input as given.
+  const std::vector<std::uint32_t> repeats = repeated_faces(mesh);
+  if (!repeats.empty()) {
+    SimplifyOptions rest = options;
+    rest.target_triangles = tiling::global_target(options, mesh.triangle_count());
+    SimplifyResult r = simplify_maybe_tiled(without_faces(mesh, repeats), rest);
+    r.triangles_before = mesh.triangle_count();
+    r.quads_before = count_face_kinds(mesh).quads;
+    r.repeated_faces_removed = repeats.size();
+    return r;
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  const FaceKindCounts kinds = count_face_kinds(mesh);
+  // Copy only when there is something to triangulate: the input is often the largest thing in memory.
+  Mesh triangulated_copy;
+  if (kinds.quads != 0 || kinds.polygons != 0) triangulated_copy = triangulated(mesh);
+  const Mesh& tris = triangulated_copy.face_count() != 0 ? triangulated_copy : mesh;
+  if (!tiling::applies(tris, options)) return simplify(mesh, options);
+  const double triangulate_ms = tiling::ms_since(t0);
+  SimplifyResult r = tiling::simplify_tiled(tris, options);
+  r.triangles_before = mesh.triangle_count();
+  r.quads_before = kinds.quads;
+  r.timings.setup_ms += triangulate_ms;
+  return r;
+}
+
+}  // namespace lodforge

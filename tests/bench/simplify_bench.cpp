@@ -523,8 +523,6 @@ Geometry run_lodforge(Run& run, const Input& in, const Settings& s, unsigned thr
   options.target_ratio = run.ratio;
   options.target_triangles = run.target;
   options.threads = threads;
-  // One engine run over the whole mesh, as this bench has always measured (the tiled path: lodforge_bench_tiling).
-  options.tiling = lodforge::TilingMode::off;
   lodforge::SimplifyResult res = measure<lodforge::SimplifyResult>(
       run, s, [] {}, [&] { return lodforge::simplify(in.mesh, options); });
   run.details = {{"stop_reason", lodforge::stop_reason_name(res.stop_reason)},

@@ -27,6 +27,7 @@
 #include "lodforge/core/mesh.hpp"
 #include "lodforge/eval/eval.hpp"
 #include "lodforge/simplify/simplify.hpp"
+#include "lodforge/tiling/tiling.hpp"
 #include "meshopt_peer.hpp"
 #include "terrain.hpp"
 
@@ -138,7 +139,7 @@ int main(int argc, char** argv) {
       o.threads = threads;
       o.tiling = mode;
       o.tile_triangles = tile_triangles;
-      lodforge::SimplifyResult r = lodforge::simplify(terrain, o);
+      lodforge::SimplifyResult r = lodforge::simplify_maybe_tiled(terrain, o);
       f.passes = static_cast<double>(r.tiling_passes);
       f.tile_runs = static_cast<double>(r.tile_runs);
       f.setup_ms = r.timings.setup_ms + r.timings.initial_costs_ms;

@@ -88,12 +88,11 @@ enum class SeamStage : std::uint8_t {
 };
 const char* seam_stage_name(SeamStage s);
 
-// Tiled simplification of huge meshes (tiling/tiling.hpp, docs/tiling.md): the mesh is cut into spatial tiles
-// simplified in parallel with their shared borders locked, stitched and cut again on a shifted grid. Triangle
-// engines (edge_collapse, multiple_choice) without an error budget to verify; otherwise the mesh runs untiled.
+// Tiled simplification of huge meshes (docs/tiling.md). Plain option data: simplify() never tiles and ignores
+// it; the tiled entry point in the tiling part (simplify_maybe_tiled(), tiling/tiling.hpp) reads it.
 enum class TilingMode {
   off,        // one engine run over the whole mesh
-  automatic,  // tiled from tiling::kAutoThresholdTriangles (1,000,000) triangles on (default)
+  automatic,  // tiled from 1,000,000 triangles on (default)
   on,         // tiled whatever the size
 };
 const char* tiling_mode_name(TilingMode m);
@@ -127,6 +126,7 @@ struct SimplifyOptions {
   // relative to the queue, see edge_collapse.cpp), 1 = strictly sequential greedy. Output depends on this
   // value but never on `threads`.
   std::size_t max_batch = 0;
+  // Read by simplify_maybe_tiled() only (tiling/tiling.hpp); simplify() runs untiled whatever they say.
   TilingMode tiling = TilingMode::automatic;
   std::size_t tile_triangles = 200'000;  // triangles per tile on the tiled path, at least 100
 
@@ -267,7 +267,7 @@ struct SimplifyResult {
   // Engine::polychord only: the quad engine made less than half of the reduction, so the triangle engine
   // simplified the input itself.
   bool quad_engine_handed_over = false;
-  // The tiled path (SimplifyOptions::tiling): passes made (the last may be one untiled run over the stitched
+  // The tiled path (simplify_maybe_tiled()): passes made (the last may be one untiled run over the stitched
   // mesh) and tiles simplified over all of them; 0 and 0 when the mesh ran untiled.
   std::size_t tiling_passes = 0;
   std::size_t tile_runs = 0;

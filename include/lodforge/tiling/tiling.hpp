@@ -2,7 +2,8 @@
 // simplified by the chosen triangle engine with its cut-border vertices locked (in parallel, one task per
 // tile), the tiles are stitched back (border vertices never moved, so they weld exactly), and the mesh is cut
 // again on a grid shifted by part of a tile so that every former border is interior, until the target is met.
-// simplify() dispatches here by SimplifyOptions::tiling (docs/tiling.md).
+// This part comes after simplify: it calls simplify() per tile, and simplify() knows nothing of it. The batch
+// runner and `lodforge simplify` call simplify_maybe_tiled(), which picks the path (docs/tiling.md).
 #pragma once
 
 #include <cstddef>
@@ -11,6 +12,16 @@
 
 #include "lodforge/core/mesh.hpp"
 #include "lodforge/simplify/simplify.hpp"
+
+namespace lodforge {
+
+// simplify() for a mesh of any size: the tiled path where SimplifyOptions::tiling asks for it (on, or automatic
+// and at least tiling::kAutoThresholdTriangles triangles after polygons are triangulated and repeated faces
+// dropped) and the engine and options allow it (tiling::applies()); otherwise exactly simplify(mesh, options).
+// Throws std::invalid_argument as simplify() does.
+SimplifyResult simplify_maybe_tiled(const Mesh& mesh, const SimplifyOptions& options);
+
+}  // namespace lodforge
 
 namespace lodforge::tiling {
 
@@ -24,10 +35,10 @@ inline constexpr int kMaxPasses = 8;
 inline constexpr std::size_t kOversample = 3;
 inline constexpr std::size_t kFinalTiles = 4;
 
-// Whether simplify() takes the tiled path for this (triangulated, repeat-free) mesh: tiling on, or automatic
-// and at least kAutoThresholdTriangles triangles; a triangle engine (edge_collapse, multiple_choice); no error
-// budget (budgets stay on the untiled path, which verifies them); no caller policies.
-bool applies(const Mesh& triangles, const SimplifyOptions& options, const CollapsePolicies& policies);
+// Whether simplify_maybe_tiled() takes the tiled path for this (triangulated, repeat-free) mesh: tiling on, or
+// automatic and at least kAutoThresholdTriangles triangles; a triangle engine (edge_collapse, multiple_choice);
+// no error budget to verify (budgets stay on the untiled path, which verifies them).
+bool applies(const Mesh& triangles, const SimplifyOptions& options);
 
 // One cut of a mesh into tiles: cell size `cell` on a grid whose origin is the bounding box's minimum moved
 // back by `shift` cells on every axis; each triangle goes to the cell of its centroid. Tiles are the occupied
@@ -49,7 +60,7 @@ double pass_shift(int pass);
 // `vertices` receives the source vertex of each sub-mesh vertex.
 Mesh extract(const Mesh& triangles, const std::vector<std::uint32_t>& faces, std::vector<std::uint32_t>& vertices);
 
-// The tiled simplification (simplify() calls it when applies() holds). `triangles` holds triangles only and
+// The tiled simplification (simplify_maybe_tiled() calls it when applies() holds). `triangles` holds triangles only and
 // no repeated faces. Deterministic: the output is the same for any thread count.
 SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& options);
 

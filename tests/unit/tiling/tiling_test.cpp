@@ -199,7 +199,7 @@ TEST(TilingSimplify, ClosedMeshStaysCrackFree) {
     // 10% in tiles of 3000: one tiled pass, then an untiled run; 20% in tiles of 500: the locked cuts hold the
     // first pass above the target, and further passes on shifted grids go on in tiles.
     for (const auto& [ratio, tile] : {std::pair{0.1, 3000}, std::pair{0.2, 500}}) {
-      const SimplifyResult r = simplify(m, tiled(ratio, std::size_t(tile)));
+      const SimplifyResult r = simplify_maybe_tiled(m, tiled(ratio, std::size_t(tile)));
       SCOPED_TRACE(::testing::Message() << m.face_count() << " triangles to " << ratio);
       EXPECT_EQ(r.stop_reason, StopReason::target_reached);
       EXPECT_LE(r.triangles_after, std::size_t(std::llround(ratio * double(m.face_count()))));
@@ -227,17 +227,17 @@ TEST(TilingSimplify, SameOutputForOneAndTwoThreads) {
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
     SimplifyOptions o = tiled(0.05, 2000);
     o.threads = 1;
-    one = simplify(m, o);
+    one = simplify_maybe_tiled(m, o);
   }
   {
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
     SimplifyOptions o = tiled(0.05, 2000);
     o.threads = 2;
-    two = simplify(m, o);
+    two = simplify_maybe_tiled(m, o);
   }
   EXPECT_TRUE(one.mesh == two.mesh);
   EXPECT_EQ(one.collapses, two.collapses);
-  const SimplifyResult all = simplify(m, tiled(0.05, 2000));
+  const SimplifyResult all = simplify_maybe_tiled(m, tiled(0.05, 2000));
   EXPECT_TRUE(all.mesh == one.mesh);
 }
 
@@ -248,15 +248,45 @@ TEST(TilingSimplify, AutomaticLeavesSmallMeshesToTheEngine) {
   ASSERT_EQ(o.tiling, TilingMode::automatic);
   SimplifyOptions off = o;
   off.tiling = TilingMode::off;
-  EXPECT_TRUE(simplify(m, o).mesh == simplify(m, off).mesh);
-  EXPECT_FALSE(applies(m, o, {}));
-  EXPECT_TRUE(applies(m, tiled(0.2, 1000), {}));
+  EXPECT_TRUE(simplify_maybe_tiled(m, o).mesh == simplify(m, off).mesh);
+  EXPECT_FALSE(applies(m, o));
+  EXPECT_TRUE(applies(m, tiled(0.2, 1000)));
   SimplifyOptions budget = tiled(0.2, 1000);
   budget.max_error_rel = 0.01;
-  EXPECT_FALSE(applies(m, budget, {})) << "budgets are verified on the untiled path";
+  EXPECT_FALSE(applies(m, budget)) << "budgets are verified on the untiled path";
   SimplifyOptions cluster = tiled(0.2, 1000);
   cluster.engine = Engine::cluster;
-  EXPECT_FALSE(applies(m, cluster, {}));
+  EXPECT_FALSE(applies(m, cluster));
+}
+
+// simplify() itself never tiles, whatever the options say; the tiled entry point drops repeated faces first and
+// keeps a ratio target relative to the input as given, as simplify() does.
+TEST(TilingSimplify, PlainSimplifyNeverTiles) {
+  const Mesh m = make_torus(160, 100);
+  const SimplifyOptions o = tiled(0.05, 2000);
+  const SimplifyResult plain = simplify(m, o);
+  EXPECT_EQ(plain.tiling_passes, 0u);
+  EXPECT_EQ(plain.tile_runs, 0u);
+  SimplifyOptions off = o;
+  off.tiling = TilingMode::off;
+  EXPECT_TRUE(plain.mesh == simplify(m, off).mesh);
+  const SimplifyResult t = simplify_maybe_tiled(m, o);
+  EXPECT_GE(t.tiling_passes, 2u);
+
+  Mesh repeated = m;
+  for (std::size_t f = 0; f < 100; ++f) {
+    const std::uint32_t c = repeated.face_offsets[f];
+    const std::uint32_t w[3] = {repeated.corner_wedge[c], repeated.corner_wedge[c + 1], repeated.corner_wedge[c + 2]};
+    repeated.add_face(w, 3, 0);
+  }
+  const SimplifyResult r = simplify_maybe_tiled(repeated, o);
+  EXPECT_EQ(r.repeated_faces_removed, 100u);
+  EXPECT_EQ(r.triangles_before, repeated.face_count());
+  EXPECT_GE(r.tiling_passes, 2u);
+  EXPECT_EQ(r.stop_reason, StopReason::target_reached);
+  EXPECT_LE(r.triangles_after, std::size_t(std::llround(0.05 * double(repeated.face_count()))));
+  EXPECT_GT(r.triangles_after, t.triangles_after) << "5% of the input as given, repeats included";
+  EXPECT_TRUE(validate(r.mesh).ok());
 }
 
 // Without verification an error budget is only the engines' QEM cap: the tiles apply it (relative to the whole
@@ -266,8 +296,8 @@ TEST(TilingSimplify, UnverifiedBudgetCapsTheTiles) {
   SimplifyOptions o = tiled(0.01, 2000);
   o.max_error_rel = 1e-4;
   o.verify_budget = false;
-  ASSERT_TRUE(applies(m, o, {}));
-  const SimplifyResult r = simplify(m, o);
+  ASSERT_TRUE(applies(m, o));
+  const SimplifyResult r = simplify_maybe_tiled(m, o);
   EXPECT_GE(r.tiling_passes, 1u);
   EXPECT_EQ(r.stop_reason, StopReason::error_budget);
   EXPECT_GT(r.triangles_after, m.face_count() / 100);
@@ -278,14 +308,14 @@ TEST(TilingSimplify, UnverifiedBudgetCapsTheTiles) {
 TEST(TilingSimplify, RejectsTinyTiles) {
   SimplifyOptions o = tiled(0.5, 10);
   EXPECT_FALSE(o.validate().empty());
-  EXPECT_THROW(simplify(make_torus(10, 10), o), std::invalid_argument);
+  EXPECT_THROW(simplify_maybe_tiled(make_torus(10, 10), o), std::invalid_argument);
 }
 
 TEST(TilingSimplify, UserLocksHoldThroughThePasses) {
   const Mesh m = make_torus(160, 100);
   SimplifyOptions o = tiled(0.05, 2000);
   for (std::uint32_t v = 0; v < m.vertex_count(); v += 997) o.locked_vertices.push_back(v);
-  const SimplifyResult r = simplify(m, o);
+  const SimplifyResult r = simplify_maybe_tiled(m, o);
   std::set<std::array<float, 3>> out;
   for (const Vec3f& p : r.mesh.positions) out.insert(p.v);
   for (std::uint32_t v : o.locked_vertices) EXPECT_TRUE(out.count(m.positions[v].v)) << "locked vertex " << v;
@@ -298,7 +328,7 @@ TEST(TilingSimplify, UvSeamsAndAttributesCarriedThroughCutAndStitch) {
   for (AttributePlacement placement : {AttributePlacement::optimal, AttributePlacement::keep}) {
     SimplifyOptions o = tiled(0.1, 1500);
     o.attribute_placement = placement;
-    const SimplifyResult r = simplify(m, o);
+    const SimplifyResult r = simplify_maybe_tiled(m, o);
     ASSERT_TRUE(validate(r.mesh).ok());
     ASSERT_EQ(r.mesh.uvs.size(), 1u);
     ASSERT_EQ(r.mesh.uvs[0].size(), r.mesh.wedge_count());
@@ -352,7 +382,7 @@ TEST(TilingCorpus, FlightHelmetKeepsUvCharts) {
     for (std::uint32_t w = 0; w < tris.wedge_count(); ++w) charts_of[tris.uvs[0][w].v].insert(find(w));
     SimplifyOptions o = tiled(0.25, 1000);
     o.attribute_placement = AttributePlacement::keep;
-    const SimplifyResult r = simplify(tris, o);
+    const SimplifyResult r = simplify_maybe_tiled(tris, o);
     SimplifyOptions untiled_options = o;
     untiled_options.tiling = TilingMode::off;
     const SimplifyResult untiled = simplify(tris, untiled_options);
