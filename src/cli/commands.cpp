@@ -7,8 +7,11 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
+
+#include <tbb/task_arena.h>
 
 #include "lodforge/batch/runner.hpp"
 #include "lodforge/core/topology.hpp"
@@ -240,6 +243,7 @@ void register_simplify(CLI::App& app) {
     bool keep_attributes = false;
     std::string seams = "relax";
     std::string tiling = "auto";
+    std::string memory_limit;
     bool evaluate = false;
     bool no_verify = false;
   };
@@ -298,6 +302,10 @@ void register_simplify(CLI::App& app) {
   cmd->add_option("--tile-triangles", a->opt.tile_triangles,
                   "triangles per tile on the tiled path (at least 100)")
       ->default_val(a->opt.tile_triangles);
+  cmd->add_option("--memory-limit", a->memory_limit,
+                  "SIZE (512M, 4G; at least 16M): estimate each mesh's peak memory from its triangle count and tile "
+                  "it, with tiles small enough, where one engine run would not fit; refuse a mesh that does not "
+                  "fit even tiled (docs/tiling.md)");
   cmd->add_flag("--eval", a->evaluate, "measure the result against the input (Hausdorff, mean, RMS)");
   cmd->callback([a] {
     SimplifyOptions opt = a->opt;
@@ -329,9 +337,40 @@ void register_simplify(CLI::App& app) {
       set_exit_code(2);
       return;
     }
+    std::size_t memory_limit = 0;
+    if (!a->memory_limit.empty()) {
+      try {
+        memory_limit = tiling::parse_memory_size(a->memory_limit);
+      } catch (const std::invalid_argument& e) {
+        std::fprintf(stderr, "error: --memory-limit: %s\n", e.what());
+        set_exit_code(2);
+        return;
+      }
+    }
     if (!output_writable(a->out)) return;
     try {
       io::Asset asset = io::load_asset(a->in);
+      // Every mesh is planned before any is simplified: a mesh that cannot fit fails the run before the work.
+      std::vector<tiling::MemoryPlan> plans(asset.meshes.size());
+      if (memory_limit > 0) {
+        const unsigned workers =
+            opt.threads ? opt.threads : static_cast<unsigned>(tbb::this_task_arena::max_concurrency());
+        for (std::size_t i = 0; i < asset.meshes.size(); ++i) {
+          plans[i] = tiling::plan_memory(asset.meshes[i], opt, memory_limit, workers);
+          if (plans[i].fits) continue;
+          const bool tileable = opt.engine == Engine::edge_collapse || opt.engine == Engine::multiple_choice;
+          std::fprintf(stderr,
+                       "error: %s: mesh %zu (%zu triangles) does not fit in --memory-limit %s: %s (out-of-core "
+                       "streaming is not done)\n",
+                       a->in.c_str(), i, asset.meshes[i].triangle_count(), a->memory_limit.c_str(),
+                       !tileable ? "one engine run needs more and this engine cannot tile"
+                       : opt.verify_budget && (opt.max_error_rel >= 0.0 || opt.max_error_abs >= 0.0)
+                           ? "one engine run needs more and a verified error budget cannot tile (--no-verify can)"
+                           : "the mesh held in memory with the tiled path's arrays needs more");
+          set_exit_code(2);
+          return;
+        }
+      }
       // A relative budget is of the asset's diagonal as the scene shows it (glTF node transforms applied), for
       // every mesh of it; each mesh gets it in its own units.
       const double world_diagonal = io::world_bounds(asset).diagonal();
@@ -344,6 +383,14 @@ void register_simplify(CLI::App& app) {
         if (max_error_rel >= 0.0) {
           mesh_opt.max_error_abs = max_error_rel * diagonal;
           mesh_opt.max_error_rel = -1.0;
+        }
+        if (plans[i].force_tiling) {
+          mesh_opt.tiling = TilingMode::on;
+          mesh_opt.tile_triangles = plans[i].tile_triangles;
+          std::printf("mesh %zu: about %zu MB untiled, over --memory-limit %s: tiled in tiles of %zu triangles "
+                      "(about %zu MB)\n",
+                      i, plans[i].untiled_bytes >> 20, a->memory_limit.c_str(), plans[i].tile_triangles,
+                      plans[i].tiled_bytes >> 20);
         }
         SimplifyResult r = simplify_maybe_tiled(src, mesh_opt);
         std::printf("mesh %zu: %zu -> %zu triangles, QEM error %.4f%% of diagonal (a ranking, not a bound), "

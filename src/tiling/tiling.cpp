@@ -7,6 +7,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -369,6 +370,71 @@ Mesh extract(const Mesh& triangles, const std::vector<std::uint32_t>& faces, std
     if (groups) m.face_group.push_back(triangles.face_group[f]);
   }
   return m;
+}
+
+std::size_t parse_memory_size(const std::string& text) {
+  auto bad = [&](const std::string& why) {
+    return std::invalid_argument("memory limit '" + text + "': " + why);
+  };
+  std::size_t i = 0;
+  std::uint64_t value = 0;
+  while (i < text.size() && text[i] >= '0' && text[i] <= '9') {
+    if (value > (std::uint64_t{1} << 50)) throw bad("too large");
+    value = value * 10 + static_cast<std::uint64_t>(text[i] - '0');
+    ++i;
+  }
+  if (i == 0) throw bad("expected a number of bytes with an optional K, M, G or T suffix (e.g. 512M, 4G)");
+  std::string unit;
+  for (; i < text.size(); ++i) unit += static_cast<char>(std::toupper(static_cast<unsigned char>(text[i])));
+  int shift = 0;
+  if (!unit.empty() && std::string("KMGT").find(unit[0]) != std::string::npos) {
+    shift = 10 * (1 + static_cast<int>(std::string("KMGT").find(unit[0])));
+    unit.erase(0, 1);
+  }
+  if (!unit.empty() && unit != "B" && !(shift > 0 && unit == "IB")) {
+    throw bad("expected a number of bytes with an optional K, M, G or T suffix (e.g. 512M, 4G)");
+  }
+  if (shift > 0 && value > (std::uint64_t{1} << (62 - shift))) throw bad("too large");
+  const std::uint64_t bytes = value << shift;
+  if (bytes < kMinMemoryLimit) throw bad("below the smallest accepted limit, 16M");
+  return static_cast<std::size_t>(bytes);
+}
+
+std::size_t mesh_bytes(const Mesh& m) {
+  auto b = [](const auto& v) { return v.size() * sizeof(v[0]); };
+  std::size_t n = b(m.positions) + b(m.skin) + b(m.priority) + b(m.wedge_vertex) + b(m.normals) + b(m.tangents) +
+                  b(m.face_offsets) + b(m.corner_wedge) + b(m.face_material) + b(m.face_group);
+  for (const auto& u : m.uvs) n += b(u);
+  for (const auto& c : m.colors) n += b(c);
+  for (const CustomAttribute& c : m.custom) n += b(c.values);
+  for (const MorphTarget& t : m.morph_targets) n += b(t.position_deltas) + b(t.normal_deltas) + b(t.tangent_deltas);
+  return n;
+}
+
+MemoryPlan plan_memory(const Mesh& mesh, const SimplifyOptions& options, std::size_t limit, unsigned workers) {
+  MemoryPlan p;
+  const std::size_t n = mesh.triangle_count();
+  p.input_bytes = mesh_bytes(mesh);
+  p.untiled_bytes = p.input_bytes + kUntiledBytesPerTriangle * n;
+  // An eighth of the limit is kept for what the estimate leaves out: the program, allocator slack, the
+  // loader's leftovers (a 2M-triangle run measured 7% over its limit without this margin).
+  limit -= limit / 8;
+  if (p.untiled_bytes <= limit) return p;
+  if (!may_tile(options)) {
+    p.fits = false;
+    return p;
+  }
+  // Each tile is a copy of its part of the input plus its engine's working set; `workers` tiles run at once,
+  // and the final untiled run takes up to kFinalTiles tiles' worth of triangles.
+  const std::size_t per_tile_triangle = kUntiledBytesPerTriangle + (n > 0 ? p.input_bytes / n : 0) + 1;
+  const std::size_t fixed = p.input_bytes + kTiledBytesPerTriangle * n;
+  const std::size_t slots = std::max<std::size_t>(workers, 1) + kFinalTiles;
+  const std::size_t tile = fixed < limit ? (limit - fixed) / (per_tile_triangle * slots) : 0;
+  p.tile_triangles = std::min(tile, options.tile_triangles);
+  p.tiled_bytes = fixed + per_tile_triangle * slots * p.tile_triangles;
+  p.fits = p.tile_triangles >= 100;
+  p.force_tiling = p.fits;
+  return p;
 }
 
 SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& options) {

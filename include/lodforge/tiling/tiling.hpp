@@ -8,6 +8,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "lodforge/core/mesh.hpp"
@@ -59,6 +60,37 @@ double pass_shift(int pass);
 // order, with every vertex and wedge attribute; materials, groups, formats and the name as the source's.
 // `vertices` receives the source vertex of each sub-mesh vertex.
 Mesh extract(const Mesh& triangles, const std::vector<std::uint32_t>& faces, std::vector<std::uint32_t>& vertices);
+
+// ---- memory limit (lodforge simplify --memory-limit; docs/tiling.md) ----
+
+// The smallest limit accepted (small enough for tests).
+inline constexpr std::size_t kMinMemoryLimit = std::size_t{16} << 20;
+// Peak heap growth per input triangle, measured on the generated terrain (docs/tiling.md): one engine run over
+// the whole mesh, and the tiled path's own arrays (cut keys, tile lists, stitched meshes) over the whole mesh.
+inline constexpr std::size_t kUntiledBytesPerTriangle = 170;
+inline constexpr std::size_t kTiledBytesPerTriangle = 48;
+
+// "512M", "4G", "1048576" (bytes); suffixes K, M, G, T (powers of 1024), any case, optionally followed by "B"
+// or "iB". Throws std::invalid_argument naming the text when it is malformed or below kMinMemoryLimit.
+std::size_t parse_memory_size(const std::string& text);
+
+// The bytes `mesh`'s arrays hold.
+std::size_t mesh_bytes(const Mesh& mesh);
+
+// What a run of `options` over `mesh` needs under `limit` bytes (of which the estimates may use 7/8, the rest
+// being left for what they do not count): untiled as asked when its estimate fits;
+// else the tiled path with tiles small enough to fit (`tile_triangles`, at most options.tile_triangles); else
+// nothing fits (the mesh held in memory plus the tiled path's arrays exceed the limit, or the engine or a
+// verified budget cannot tile). `workers`: tiles simplified at once.
+struct MemoryPlan {
+  std::size_t input_bytes = 0;    // the mesh as held
+  std::size_t untiled_bytes = 0;  // estimated peak of one engine run, the input included
+  std::size_t tiled_bytes = 0;    // estimated peak of the tiled path with `tile_triangles`, the input included
+  std::size_t tile_triangles = 0;
+  bool force_tiling = false;  // run tiled with `tile_triangles`
+  bool fits = true;
+};
+MemoryPlan plan_memory(const Mesh& mesh, const SimplifyOptions& options, std::size_t limit, unsigned workers);
 
 // The tiled simplification (simplify_maybe_tiled() calls it when applies() holds). `triangles` holds triangles only and
 // no repeated faces. Deterministic: the output is the same for any thread count.

@@ -352,6 +352,56 @@ TEST(TilingSimplify, UvSeamsAndAttributesCarriedThroughCutAndStitch) {
   }
 }
 
+TEST(TilingMemory, ParsesSizesAndRefusesSmallOrMalformedOnes) {
+  EXPECT_EQ(parse_memory_size("16M"), std::size_t{16} << 20);
+  EXPECT_EQ(parse_memory_size("512m"), std::size_t{512} << 20);
+  EXPECT_EQ(parse_memory_size("4G"), std::size_t{4} << 30);
+  EXPECT_EQ(parse_memory_size("4GiB"), std::size_t{4} << 30);
+  EXPECT_EQ(parse_memory_size("20000K"), std::size_t{20000} << 10);
+  EXPECT_EQ(parse_memory_size("16777216"), std::size_t{16} << 20);
+  for (const char* bad : {"", "M", "12X", "1.5G", "-4G", "4 G", "4GB5", "99999999999999999999T"}) {
+    EXPECT_THROW(parse_memory_size(bad), std::invalid_argument) << bad;
+  }
+  for (const char* small : {"15M", "16777215", "1K", "0"}) {
+    try {
+      parse_memory_size(small);
+      ADD_FAILURE() << small << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("16M"), std::string::npos) << e.what();
+    }
+  }
+}
+
+// Untiled where the estimate fits; tiles small enough where it does not; nothing where the mesh itself with the
+// tiled path's arrays is over the limit, or where the engine cannot tile.
+TEST(TilingMemory, PlansTilesThatFit) {
+  const Mesh m = make_torus(300, 200);  // 120,000 triangles: over 16M untiled, under it tiled
+  const SimplifyOptions o;
+  const std::size_t untiled = mesh_bytes(m) + kUntiledBytesPerTriangle * m.face_count();
+  const MemoryPlan roomy = plan_memory(m, o, untiled + untiled / 7 + 8, 2);  // 7/8 of the limit are planned
+  EXPECT_TRUE(roomy.fits);
+  EXPECT_FALSE(roomy.force_tiling);
+  EXPECT_EQ(roomy.untiled_bytes, untiled);
+  const MemoryPlan tight = plan_memory(m, o, kMinMemoryLimit, 2);
+  ASSERT_GT(untiled, kMinMemoryLimit);
+  EXPECT_TRUE(tight.fits);
+  EXPECT_TRUE(tight.force_tiling);
+  EXPECT_GE(tight.tile_triangles, 100u);
+  EXPECT_LT(tight.tile_triangles, m.face_count() / 4);
+  EXPECT_LE(tight.tiled_bytes, kMinMemoryLimit - kMinMemoryLimit / 8);
+  EXPECT_TRUE(plan_memory(m, o, untiled + untiled / 8, 2).force_tiling) << "the margin";
+  EXPECT_LT(plan_memory(m, o, kMinMemoryLimit, 8).tile_triangles, tight.tile_triangles) << "more tiles at once";
+  SimplifyOptions cluster = o;
+  cluster.engine = Engine::cluster;
+  EXPECT_FALSE(plan_memory(m, cluster, kMinMemoryLimit, 2).fits);
+  SimplifyOptions budget = o;
+  budget.max_error_rel = 0.01;
+  EXPECT_FALSE(plan_memory(m, budget, kMinMemoryLimit, 2).fits);
+  const Mesh huge = make_torus(1000, 400);  // 800,000 triangles, over 16M held in memory
+  ASSERT_GT(mesh_bytes(huge) + kTiledBytesPerTriangle * huge.face_count(), kMinMemoryLimit);
+  EXPECT_FALSE(plan_memory(huge, o, kMinMemoryLimit, 2).fits);
+}
+
 // A glTF asset with UV charts and tangents, tiled small: no triangle spans two UV charts of the input (UV
 // values are kept exactly with AttributePlacement::keep, so each output corner's chart is known).
 TEST(TilingCorpus, FlightHelmetKeepsUvCharts) {
