@@ -25,6 +25,11 @@
 #   scripts/bench.sh report [ARGS...]     only lodforge_bench_report (report.html for 100 000 assets in headless
 #                                         Chromium: load <= 3 s, filter/sort <= 200 ms, <= 1 KB per asset;
 #                                         --assets N, --reps N, --out DIR; needs node + puppeteer-core + chromium)
+#   scripts/bench.sh tiling [ARGS...]     only lodforge_bench_tiling (tiled vs untiled lodforge vs meshopt_simplify on
+#                                         the generated fBm terrain, 2 threads: time, peak memory, RMS/mean error;
+#                                         targets tiled <= 0.5x meshopt's time, RMS and mean <= 1.1x untiled; --side N
+#                                         (default 1415: 4.0M triangles; 2900: 16.8M), --ratio, --threads, --tile-triangles,
+#                                         --eval-samples, --skip-untiled; JSON: $BUILD_DIR/bench/bench-tiling.json)
 #   scripts/bench.sh budget [ARGS...]     only lodforge_bench_budget (error budgets, docs/budgets.md: the LOD simplify()
 #                                         makes with a budget vs its reported bound and the measured Hausdorff, vs
 #                                         the longest holding prefix of the same collapse sequence and vs meshopt at
@@ -88,16 +93,17 @@ EVAL="$BUILD_DIR/tests/bench/lodforge_bench_eval"
 BUDGET="$BUILD_DIR/tests/bench/lodforge_bench_budget"
 REPORT="$BUILD_DIR/tests/bench/lodforge_bench_report"
 CLUSTER="$BUILD_DIR/tests/bench/lodforge_bench_cluster"
+TILING="$BUILD_DIR/tests/bench/lodforge_bench_tiling"
 mode=all
 case "${1:-}" in
-  simplify | load | batch | quad | attributes | eval | budget | report | cluster) mode=$1; shift ;;
+  simplify | load | batch | quad | attributes | eval | budget | report | cluster | tiling) mode=$1; shift ;;
 esac
 # The binaries this mode runs must be built (the combined mode runs simplify, load and batch).
 case $mode in
   all) needed=("$SIMPLIFY" "$LOAD" "$BATCH") ;;
   simplify) needed=("$SIMPLIFY") ;; load) needed=("$LOAD") ;; batch) needed=("$BATCH") ;; quad) needed=("$QUAD") ;;
   attributes) needed=("$ATTRIBUTES") ;; eval) needed=("$EVAL") ;; budget) needed=("$BUDGET") ;; report) needed=("$REPORT") ;;
-  cluster) needed=("$CLUSTER") ;;
+  cluster) needed=("$CLUSTER") ;; tiling) needed=("$TILING") ;;
 esac
 for b in "${needed[@]}"; do
   if [ ! -x "$b" ]; then
@@ -132,6 +138,7 @@ case $mode in
   eval) "$EVAL" "$@" ;;
   budget) "$BUDGET" "$@" ;;
   cluster) "$CLUSTER" "$@" ;;
+  tiling) "$TILING" --json "$OUT_DIR/bench-tiling.json" "$@" ;;
   report) "$REPORT" --out "$OUT_DIR/report" "$@" ;;
   attributes) "$ATTRIBUTES" --json "$OUT_DIR/bench-attributes.json" "$@" ;;
   all)

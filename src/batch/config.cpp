@@ -320,6 +320,12 @@ constexpr EnumName<AttributePlacement> kPlacementNames[] = {
     {"keep", AttributePlacement::keep},
 };
 
+constexpr EnumName<TilingMode> kTilingNames[] = {
+    {"auto", TilingMode::automatic},
+    {"on", TilingMode::on},
+    {"off", TilingMode::off},
+};
+
 constexpr EnumName<symmetry::PlaneMode> kSymmetryPlaneNames[] = {
     {"auto", symmetry::PlaneMode::automatic},
     {"x", symmetry::PlaneMode::x},
@@ -517,6 +523,9 @@ const std::vector<Field<LodOptions>>& option_fields() {
       B::number("priority_lock", &SimplifyOptions::priority_lock, above(0)),
       B::number("skin_weight_threshold", &SimplifyOptions::skin_weight_threshold, at_least(0).at_most(1)),
       B::number("skin_max_distance", &SimplifyOptions::skin_max_distance, at_least(0).at_most(2)),
+      B::choice("tiling", &SimplifyOptions::tiling, kTilingNames),
+      // The same lower bound SimplifyOptions::validate() sets.
+      B::count("tile_triangles", &SimplifyOptions::tile_triangles, 100, std::numeric_limits<std::uint32_t>::max()),
   };
   return fields;
 }

@@ -59,6 +59,7 @@
 #include "lodforge/quad/quad_stats.hpp"
 #include "lodforge/simplify/simplify.hpp"
 #include "lodforge/symmetry/symmetry.hpp"
+#include "lodforge/tiling/tiling.hpp"
 
 namespace lodforge::batch {
 namespace {
@@ -271,7 +272,7 @@ MeshChain build_chain(const Mesh& source, const AssetClass& cls, std::size_t ass
     options.stop = stop;
     if (expire != nullptr) expire->store(true);
     const auto t0 = Clock::now();
-    SimplifyResult r = simplify(from, options);
+    SimplifyResult r = simplify_maybe_tiled(from, options);
     if (r.stop_reason == StopReason::stopped) throw TimedOut{};
     MeshLod lod;
     lod.mesh = std::move(r.mesh);

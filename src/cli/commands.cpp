@@ -7,8 +7,11 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
+
+#include <tbb/task_arena.h>
 
 #include "lodforge/batch/runner.hpp"
 #include "lodforge/core/topology.hpp"
@@ -20,6 +23,7 @@
 #include "lodforge/quad/quad_stats.hpp"
 #include "lodforge/simplify/simplify.hpp"
 #include "lodforge/symmetry/symmetry.hpp"
+#include "lodforge/tiling/tiling.hpp"
 
 namespace lodforge::cli {
 namespace {
@@ -146,6 +150,7 @@ std::string with_option_names(const std::string& problem) {
       {"priority_lock", "--priority-lock"},
       {"skin_weight_threshold", "--skin-threshold"},
       {"skin_max_distance", "--skin-max-distance"},
+      {"tile_triangles", "--tile-triangles"},
   };
   for (const auto& [field, option] : kNames) {
     const std::string f(field);
@@ -237,6 +242,8 @@ void register_simplify(CLI::App& app) {
     double max_error_rel = -1;
     bool keep_attributes = false;
     std::string seams = "relax";
+    std::string tiling = "auto";
+    std::string memory_limit;
     bool evaluate = false;
     bool no_verify = false;
   };
@@ -286,9 +293,23 @@ void register_simplify(CLI::App& app) {
   cmd->add_option("--skin-max-distance", a->opt.skin_max_distance,
                   "vertices of different dominant bones merge only below this L1 weight distance")
       ->default_val(a->opt.skin_max_distance);
+  cmd->add_option("--tiling", a->tiling,
+                  "auto | on | off: cut huge meshes into spatial tiles simplified in parallel with locked shared "
+                  "borders, stitched and re-cut on a shifted grid (auto: from 1,000,000 triangles; triangle "
+                  "engines without an error budget; docs/tiling.md)")
+      ->default_val(a->tiling)
+      ->check(CLI::IsMember({"auto", "on", "off"}));
+  cmd->add_option("--tile-triangles", a->opt.tile_triangles,
+                  "triangles per tile on the tiled path (at least 100)")
+      ->default_val(a->opt.tile_triangles);
+  cmd->add_option("--memory-limit", a->memory_limit,
+                  "SIZE (512M, 4G; at least 16M): estimate each mesh's peak memory from its triangle count and tile "
+                  "it, with tiles small enough, where one engine run would not fit; refuse a mesh that does not "
+                  "fit even tiled (docs/tiling.md)");
   cmd->add_flag("--eval", a->evaluate, "measure the result against the input (Hausdorff, mean, RMS)");
   cmd->callback([a] {
     SimplifyOptions opt = a->opt;
+    opt.tiling = a->tiling == "on" ? TilingMode::on : a->tiling == "off" ? TilingMode::off : TilingMode::automatic;
     if (a->keep_attributes) opt.attribute_placement = AttributePlacement::keep;
     opt.seams = a->seams == "keep" ? SeamMode::keep : a->seams == "relax" ? SeamMode::relax : SeamMode::relax_materials;
     opt.max_error_rel = a->max_error_rel;
@@ -316,9 +337,40 @@ void register_simplify(CLI::App& app) {
       set_exit_code(2);
       return;
     }
+    std::size_t memory_limit = 0;
+    if (!a->memory_limit.empty()) {
+      try {
+        memory_limit = tiling::parse_memory_size(a->memory_limit);
+      } catch (const std::invalid_argument& e) {
+        std::fprintf(stderr, "error: --memory-limit: %s\n", e.what());
+        set_exit_code(2);
+        return;
+      }
+    }
     if (!output_writable(a->out)) return;
     try {
       io::Asset asset = io::load_asset(a->in);
+      // Every mesh is planned before any is simplified: a mesh that cannot fit fails the run before the work.
+      std::vector<tiling::MemoryPlan> plans(asset.meshes.size());
+      if (memory_limit > 0) {
+        const unsigned workers =
+            opt.threads ? opt.threads : static_cast<unsigned>(tbb::this_task_arena::max_concurrency());
+        for (std::size_t i = 0; i < asset.meshes.size(); ++i) {
+          plans[i] = tiling::plan_memory(asset.meshes[i], opt, memory_limit, workers);
+          if (plans[i].fits) continue;
+          const bool tileable = opt.engine == Engine::edge_collapse || opt.engine == Engine::multiple_choice;
+          std::fprintf(stderr,
+                       "error: %s: mesh %zu (%zu triangles) does not fit in --memory-limit %s: %s (out-of-core "
+                       "streaming is not done)\n",
+                       a->in.c_str(), i, asset.meshes[i].triangle_count(), a->memory_limit.c_str(),
+                       !tileable ? "one engine run needs more and this engine cannot tile"
+                       : opt.verify_budget && (opt.max_error_rel >= 0.0 || opt.max_error_abs >= 0.0)
+                           ? "one engine run needs more and a verified error budget cannot tile (--no-verify can)"
+                           : "the mesh held in memory with the tiled path's arrays needs more");
+          set_exit_code(2);
+          return;
+        }
+      }
       // A relative budget is of the asset's diagonal as the scene shows it (glTF node transforms applied), for
       // every mesh of it; each mesh gets it in its own units.
       const double world_diagonal = io::world_bounds(asset).diagonal();
@@ -332,12 +384,22 @@ void register_simplify(CLI::App& app) {
           mesh_opt.max_error_abs = max_error_rel * diagonal;
           mesh_opt.max_error_rel = -1.0;
         }
-        SimplifyResult r = simplify(src, mesh_opt);
+        if (plans[i].force_tiling) {
+          mesh_opt.tiling = TilingMode::on;
+          mesh_opt.tile_triangles = plans[i].tile_triangles;
+          std::printf("mesh %zu: about %zu MB untiled, over --memory-limit %s: tiled in tiles of %zu triangles "
+                      "(about %zu MB)\n",
+                      i, plans[i].untiled_bytes >> 20, a->memory_limit.c_str(), plans[i].tile_triangles,
+                      plans[i].tiled_bytes >> 20);
+        }
+        SimplifyResult r = simplify_maybe_tiled(src, mesh_opt);
         std::printf("mesh %zu: %zu -> %zu triangles, QEM error %.4f%% of diagonal (a ranking, not a bound), "
                     "stopped: %s, %.1f ms\n",
                     i, r.triangles_before, r.triangles_after, percent(r.qem_error_abs),
                     stop_reason_name(r.stop_reason),
                     r.timings.setup_ms + r.timings.initial_costs_ms + r.timings.collapse_ms + r.timings.output_ms);
+        if (r.tiling_passes > 0)
+          std::printf("  tiled: %zu pass(es), %zu tile run(s)\n", r.tiling_passes, r.tile_runs);
         if (r.seam_stage != SeamStage::strict)
           std::printf("  seams relaxed: stage %s\n", seam_stage_name(r.seam_stage));
         if (!r.floors.empty()) {

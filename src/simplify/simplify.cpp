@@ -56,6 +56,9 @@ std::vector<std::string> SimplifyOptions::validate() const {
   if (multiple_choice_k < 1 || multiple_choice_k > 256) {
     problems.push_back("multiple_choice_k must be in [1, 256], got " + std::to_string(multiple_choice_k));
   }
+  if (tile_triangles < 100) {
+    problems.push_back("tile_triangles must be at least 100, got " + std::to_string(tile_triangles));
+  }
   return problems;
 }
 
@@ -100,6 +103,15 @@ const char* seam_mode_name(SeamMode m) {
     case SeamMode::keep: return "keep";
     case SeamMode::relax: return "relax";
     case SeamMode::relax_materials: return "relax_materials";
+  }
+  return "unknown";
+}
+
+const char* tiling_mode_name(TilingMode m) {
+  switch (m) {
+    case TilingMode::off: return "off";
+    case TilingMode::automatic: return "auto";
+    case TilingMode::on: return "on";
   }
   return "unknown";
 }

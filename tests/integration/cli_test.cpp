@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "lodforge/core/validate.hpp"
+#include "lodforge/io/asset.hpp"
 #include "test_support.hpp"
 
 namespace {
@@ -290,6 +292,66 @@ TEST(Cli, SimplifyRejectsInvalidOptions) {
   EXPECT_NE(r.output.find("error: --ratio must be in (0, 1], got 1.5"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("target_ratio"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(dir / "x.ply"));
+}
+
+// --tiling on cuts even a small mesh into tiles (and says so); off and the automatic default below the threshold
+// do not; a tile size below 100 is refused by its option name.
+TEST(Cli, SimplifyTilesOnRequest) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_simplify_tiling");
+  ASSERT_EQ(run_cli("demo " + dir.string()).exit_code, 0);
+  const std::string in = (dir / "environment/rock.ply").string(), out = (dir / "rock_tiled.ply").string();
+  const CliRun on = run_cli("simplify " + in + " " + out + " --ratio 0.25 --tiling on --tile-triangles 100");
+  ASSERT_EQ(on.exit_code, 0) << on.output;
+  EXPECT_NE(on.output.find("tiled: "), std::string::npos) << on.output;
+  EXPECT_TRUE(fs::exists(out));
+  for (const char* mode : {"off", "auto"}) {
+    const CliRun r = run_cli("simplify " + in + " " + out + " --ratio 0.25 --tiling " + mode);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_EQ(r.output.find("tiled: "), std::string::npos) << r.output;
+  }
+  const CliRun small = run_cli("simplify " + in + " " + (dir / "x.ply").string() + " --tiling on --tile-triangles 5");
+  EXPECT_EQ(small.exit_code, 2);
+  EXPECT_NE(small.output.find("error: --tile-triangles must be at least 100, got 5"), std::string::npos) << small.output;
+  const CliRun bad = run_cli("simplify " + in + " " + (dir / "x.ply").string() + " --tiling sometimes");
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_FALSE(fs::exists(dir / "x.ply"));
+}
+
+// --memory-limit 16M: a mesh whose untiled estimate is over it is tiled (and its output valid); limits below
+// 16M and malformed sizes are refused by the option's name, and nothing is written.
+TEST(Cli, SimplifyTilesUnderAMemoryLimit) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_simplify_memory");
+  lodforge::io::Asset asset;
+  asset.format = lodforge::io::Format::ply;
+  asset.meshes.push_back(lodforge::testing::make_uv_sphere(200, 300));  // about 120,000 triangles
+  const std::size_t triangles = asset.meshes[0].face_count();
+  const std::string in = (dir / "sphere.ply").string(), out = (dir / "sphere_lod.ply").string();
+  lodforge::io::save_asset(asset, in);
+  const CliRun r = run_cli("simplify " + in + " " + out + " --ratio 0.05 --memory-limit 16M");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("over --memory-limit 16M: tiled in tiles of"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("tiled: "), std::string::npos) << r.output;
+  const lodforge::io::Asset lod = lodforge::io::load_asset(out);
+  ASSERT_EQ(lod.meshes.size(), 1u);
+  EXPECT_TRUE(lodforge::validate(lod.meshes[0]).ok());
+  EXPECT_LE(lod.meshes[0].face_count(), triangles / 20 + 1);
+  const CliRun roomy = run_cli("simplify " + in + " " + out + " --ratio 0.05 --memory-limit 4G");
+  ASSERT_EQ(roomy.exit_code, 0) << roomy.output;
+  EXPECT_EQ(roomy.output.find("tiled"), std::string::npos) << roomy.output;
+  const std::string x = (dir / "x.ply").string();
+  for (const char* bad : {"15M", "12X", "M", "1.5G"}) {
+    const CliRun b = run_cli("simplify " + in + " " + x + " --ratio 0.5 --memory-limit " + bad);
+    EXPECT_EQ(b.exit_code, 2) << b.output;
+    EXPECT_NE(b.output.find("error: --memory-limit: memory limit '" + std::string(bad) + "'"), std::string::npos)
+        << b.output;
+  }
+  const CliRun cluster = run_cli("simplify " + in + " " + x + " --ratio 0.5 --engine cluster --memory-limit 16M");
+  EXPECT_EQ(cluster.exit_code, 2) << cluster.output;
+  EXPECT_NE(cluster.output.find("error: " + in + ": mesh 0 (" + std::to_string(triangles) +
+                                " triangles) does not fit in --memory-limit 16M"),
+            std::string::npos)
+      << cluster.output;
+  EXPECT_FALSE(fs::exists(x));
 }
 
 }  // namespace

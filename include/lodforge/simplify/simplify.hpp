@@ -88,6 +88,15 @@ enum class SeamStage : std::uint8_t {
 };
 const char* seam_stage_name(SeamStage s);
 
+// Tiled simplification of huge meshes (docs/tiling.md). Plain option data: simplify() never tiles and ignores
+// it; the tiled entry point in the tiling part (simplify_maybe_tiled(), tiling/tiling.hpp) reads it.
+enum class TilingMode {
+  off,        // one engine run over the whole mesh
+  automatic,  // tiled from 1,000,000 triangles on (default)
+  on,         // tiled whatever the size
+};
+const char* tiling_mode_name(TilingMode m);
+
 enum class BorderMode {
   free,      // borders collapse like interior edges (no constraint planes)
   preserve,  // borders may collapse along themselves, held by perpendicular constraint planes (default)
@@ -117,6 +126,9 @@ struct SimplifyOptions {
   // relative to the queue, see edge_collapse.cpp), 1 = strictly sequential greedy. Output depends on this
   // value but never on `threads`.
   std::size_t max_batch = 0;
+  // Read by simplify_maybe_tiled() only (tiling/tiling.hpp); simplify() runs untiled whatever they say.
+  TilingMode tiling = TilingMode::automatic;
+  std::size_t tile_triangles = 200'000;  // triangles per tile on the tiled path, at least 100
 
   // --- attributes, seams, skinning, painted priority (edge_collapse.hpp has the vertex kinds and rules) ---
   AttributeWeights attribute_weights{};
@@ -255,6 +267,10 @@ struct SimplifyResult {
   // Engine::polychord only: the quad engine made less than half of the reduction, so the triangle engine
   // simplified the input itself.
   bool quad_engine_handed_over = false;
+  // The tiled path (simplify_maybe_tiled()): passes made (the last may be one untiled run over the stitched
+  // mesh) and tiles simplified over all of them; 0 and 0 when the mesh ran untiled.
+  std::size_t tiling_passes = 0;
+  std::size_t tile_runs = 0;
   // The last seam stage the engine used (strict: none was needed or allowed).
   SeamStage seam_stage = SeamStage::strict;
   // When the target was not reached: what held the rest, most refused candidates first, each one of

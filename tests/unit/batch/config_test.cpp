@@ -22,7 +22,7 @@ constexpr const char* kOptionKeys =
     "engine, border, border_weight, regularization_weight, max_flip_angle_deg, seed, multiple_choice_k, max_batch, "
     "attribute_weights, seams, permissive, priority_channel, attribute_placement, priority_lock, "
     "skin_weight_threshold, "
-    "skin_max_distance";
+    "skin_max_distance, tiling, tile_triangles";
 // `defaults` and class options also take the per-asset options.
 const std::string kClassOptionKeys = std::string(kOptionKeys) + ", symmetry_plane";
 
@@ -686,6 +686,32 @@ TEST(BatchConfig, SymmetryPlanePerClass) {
   EXPECT_EQ(e["classes"][0]["options"]["symmetry_plane"], "x");
   EXPECT_FALSE(e["classes"][0]["lods"][0].contains("symmetry_plane"));
   EXPECT_EQ(parse_config(e).classes[0].options.pending.symmetry_plane, symmetry::PlaneMode::x);
+}
+
+TEST(BatchConfigErrors, Tiling) {
+  EXPECT_EQ(error_with("/defaults/tiling", "always"),
+            expected("defaults.tiling: must be one of \"auto\", \"on\", \"off\", got string \"always\""));
+  EXPECT_EQ(error_with("/classes/0/options/tile_triangles", 99),
+            expected("classes[0].options.tile_triangles: must be >= 100"));
+}
+
+// Tiling defaults to auto (200000 triangles per tile); a class and a LOD override it, and the effective config
+// writes it back.
+TEST(BatchConfig, TilingPerClassAndLod) {
+  Json doc = with_classes(R"([
+    {"name": "terrain", "match": ["terrain/**"], "options": {"tiling": "on", "tile_triangles": 50000},
+     "lods": [{"ratio": 0.5}, {"ratio": 0.1, "tiling": "off"}]},
+    {"name": "props", "match": ["props/**"], "lods": [{"ratio": 0.5}]}
+  ])");
+  const BatchConfig c = parse_config(doc);
+  EXPECT_EQ(c.classes[0].lods[0].options.simplify.tiling, TilingMode::on);
+  EXPECT_EQ(c.classes[0].lods[0].options.simplify.tile_triangles, 50000u);
+  EXPECT_EQ(c.classes[0].lods[1].options.simplify.tiling, TilingMode::off);
+  EXPECT_EQ(c.classes[1].lods[0].options.simplify.tiling, TilingMode::automatic);
+  EXPECT_EQ(c.classes[1].lods[0].options.simplify.tile_triangles, 200000u);
+  const Json e = effective_config_json(c);
+  EXPECT_EQ(e["classes"][0]["options"]["tiling"], "on");
+  EXPECT_EQ(parse_config(e).classes[0].lods[1].options.simplify.tiling, TilingMode::off);
 }
 
 TEST(BatchConfigErrors, AttributeWeights) {
