@@ -5,7 +5,7 @@
 // more also run two lodforge-1t processes at once: the two-thread ceiling of the machine, printed beside
 // lodforge's own two-thread scaling. Per run: output triangles, time, input triangles per second, peak memory per input triangle
 // and Metro-style quality from lodforge::evaluate. Prints a table, writes the same as JSON, and checks the
-// performance contract (../shared/DESIGN.md, "Performance contract") target by target: MET / NOT MET.
+// performance contract (docs/performance.md) target by target: MET / NOT MET.
 //
 // How each number is taken (the same way for every method):
 // - Input: every mesh is reduced to geometry (welded positions + triangles, attributes dropped), because the
@@ -20,7 +20,7 @@
 // - Memory: in the child, malloc_trim(0), read VmRSS, reset VmHWM to it (/proc/self/clear_refs "5"), run once,
 //   read VmHWM: peak RSS during the call minus RSS before it, divided by the input triangles.
 // - Quality: lodforge::evaluate(input, output) with --eval-samples area samples per direction plus all vertices of
-//   both meshes (the ALGORITHMS.md §10.5 protocol uses 1M); outputs are compacted (unreferenced vertices removed)
+//   both meshes (the published bunny protocol uses 1M); outputs are compacted (unreferenced vertices removed)
 //   first. lodforge with threads=all is evaluated only when its output differs from threads=1 (determinism check).
 #include <malloc.h>
 #include <meshoptimizer.h>
@@ -71,7 +71,7 @@ namespace fs = std::filesystem;
 static_assert(sizeof(Vec3f) == 3 * sizeof(float), "meshopt reads positions as packed float triples");
 
 // ---------------------------------------------------------------------------------------------------------------
-// Contract thresholds (DESIGN.md "Performance contract", ALGORITHMS.md §10.5)
+// Contract thresholds (docs/performance.md)
 
 constexpr double kQualityVsMeshopt = 0.65;        // lodforge mean and RMS <= 0.65 x meshopt (geomean, scanned)
 constexpr double kHausdorffVsMeshopt = 1.0;       // lodforge Hausdorff no worse than meshopt (geomean, scanned)
@@ -95,7 +95,7 @@ constexpr double kMaxBytesPerTriangleHuge = 150.0;
 constexpr double kChoiceSpeedup = 2.0, kChoiceMeanError = 1.3;
 constexpr double kTargetCountRatio = 0.01;      // count target judged at 1% ...
 constexpr double kTargetCountTolerance = 0.01;  // ... reached within 1% on closed meshes
-// Stanford bunny reference (ALGORITHMS.md §10.5): mean error, fraction of the bbox diagonal.
+// Stanford bunny reference (textbook Garland-Heckbert figures): mean error, fraction of the bbox diagonal.
 constexpr double kBunnyMeanAt10 = 0.00020, kBunnyMeanAt1 = 0.00150;
 // meshopt_simplify ("subset") on the bunny in the §10.5 protocol, to sanity-check this harness' evaluation.
 constexpr double kBunnyMeshoptMeanAt10 = 0.000310, kBunnyMeshoptHausAt10 = 0.00249;
@@ -1079,7 +1079,7 @@ json summarize(const Results& res, const Settings& s, std::vector<Target>& targe
       const Run* r = res.find("stanford-bunny", m, ratio);
       if (!r) continue;
       if (!bunny_header) {
-        std::printf("\n== Stanford bunny vs ALGORITHMS.md §10.5 (%% of diagonal) ==\n");
+        std::printf("\n== Stanford bunny vs the textbook reference (%% of diagonal) ==\n");
         std::printf("  %-6s %-13s %9s %9s %9s %9s  %s\n", "ratio", "method", "tris_out", "mean%", "rms%", "haus%",
                     "reference");
         bunny_header = true;

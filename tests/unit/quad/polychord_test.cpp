@@ -1,4 +1,4 @@
-// Polychord tracing (ALGORITHMS.md 4.1): ends, loops, self-intersection, face -> chord tables.
+// Polychord tracing (docs/quad-lods.md): ends, loops, self-intersection, face -> chord tables.
 #include <gtest/gtest.h>
 
 #include <algorithm>

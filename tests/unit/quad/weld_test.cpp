@@ -1,4 +1,4 @@
-// The generalised weld operator (ALGORITHMS.md 4.5): rung runs on grids (exact counts and valences), random
+// The generalised weld operator (docs/quad-lods.md): rung runs on grids (exact counts and valences), random
 // island sets (manifold or rolled back, Euler characteristic kept), locks and seams.
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// Attribute-aware simplification on small meshes made here (ALGORITHMS.md 2.6 and 6 tests): UV charts,
+// Attribute-aware simplification on small meshes made here (docs/simplifier.md, docs/seams.md): UV charts,
 // seams, materials, attribute quadrics, painted priority, skinning, morph targets, tangents, permissive mode.
 #include <gtest/gtest.h>
 
@@ -64,7 +64,7 @@ TEST(AttributeCollapse, CubeWithSixChartsKeepsThemAtTheMinimum) {
   }
 }
 
-// ALGORITHMS.md 2.6: attribute weights 0 give exactly the geometry-only result (the same mesh with its
+// Attribute weights 0 give exactly the geometry-only result (the same mesh with its
 // wedge structure but no attribute values).
 TEST(AttributeCollapse, ZeroWeightsReproduceTheGeometryOnlyResult) {
   Mesh m = simplify_test::make_bumpy_grid(24);
@@ -96,7 +96,7 @@ TEST(AttributeCollapse, ZeroWeightsReproduceTheGeometryOnlyResult) {
   }
 }
 
-// ALGORITHMS.md 2.6: with attributes in the metric, vertices gather where the colour changes quickly.
+// With attributes in the metric, vertices gather where the colour changes quickly.
 TEST(AttributeCollapse, ColourGradientKeepsVerticesWhereColourChanges) {
   Mesh m = testing::make_grid(40, 40, false);  // flat: geometry alone does not care where vertices go
   const std::size_t nw = m.wedge_count();
