@@ -270,8 +270,9 @@ void CollapseMesh::guard_reattach(const Check& c, Scratch& s, bool b_moved, std:
   for (std::size_t k = 0; k < s.fan.size(); ++k) {
     const std::uint32_t* t = &tri_[3 * std::size_t{s.fan_face[k]}];
     const double corners = std::max({guard_vertex_bound_[t[0]], guard_vertex_bound_[t[1]], guard_vertex_bound_[t[2]]});
-    const std::array<Vec3d, 3>& c = s.fan[k];
-    const double bound = guarded_face_bound(model_position(c[0]), model_position(c[1]), model_position(c[2]), corners);
+    const std::array<Vec3d, 3>& face = s.fan[k];
+    const double bound =
+        guarded_face_bound(model_position(face[0]), model_position(face[1]), model_position(face[2]), corners);
     double& fb = guard_face_bound_[s.fan_face[k]];
     fb = !b_moved && k < kept ? std::min(fb, bound) : bound;
   }
