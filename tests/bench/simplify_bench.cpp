@@ -59,6 +59,7 @@
 #include "lodforge/simplify/simplify.hpp"
 #include "asset_geometry.hpp"
 #include "terrain.hpp"
+#include "proc_status.hpp"
 
 namespace {
 
@@ -445,14 +446,7 @@ Run run_from_json(const json& j) {
   return r;
 }
 
-long status_kb(const char* key) {
-  std::ifstream f("/proc/self/status");
-  std::string line;
-  const std::size_t n = std::strlen(key);
-  while (std::getline(f, line))
-    if (line.compare(0, n, key) == 0) return std::strtol(line.c_str() + n, nullptr, 10);
-  return -1;
-}
+using lodforge::bench::status_kb;
 
 // Peak resident memory of a stretch of code, relative to the resident memory when it starts.
 class MemoryProbe {

@@ -30,19 +30,13 @@
 #include "lodforge/tiling/tiling.hpp"
 #include "meshopt_peer.hpp"
 #include "terrain.hpp"
+#include "proc_status.hpp"
 
 namespace {
 
 using lodforge::Mesh;
 
-long status_kb(const char* key) {
-  std::ifstream f("/proc/self/status");
-  std::string line;
-  const std::size_t n = std::strlen(key);
-  while (std::getline(f, line))
-    if (line.compare(0, n, key) == 0) return std::strtol(line.c_str() + n, nullptr, 10);
-  return -1;
-}
+using lodforge::bench::status_kb;
 
 struct Figures {
   double seconds = NAN, peak_mb = NAN;
