@@ -25,10 +25,6 @@ namespace {
 constexpr int kCellBits = 21;  // cell index bits per axis in a cell key
 constexpr std::int64_t kCellMax = (std::int64_t{1} << kCellBits) - 1;
 
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-
 bool same_bits(const Vec3f& a, const Vec3f& b) {
   return std::memcmp(a.v.data(), b.v.data(), sizeof(float) * 3) == 0;
 }
@@ -333,39 +329,20 @@ TileCut cut(const Mesh& triangles, std::size_t tile_triangles, double shift) {
 }
 
 Mesh extract(const Mesh& triangles, const std::vector<std::uint32_t>& faces, std::vector<std::uint32_t>& vertices) {
-  std::vector<std::uint32_t> wedges;
-  wedges.reserve(3 * faces.size());
+  std::vector<std::uint32_t> wedge_map(triangles.wedge_count(), kInvalidIndex);
   for (std::uint32_t f : faces) {
     for (std::uint32_t k = triangles.face_offsets[f]; k < triangles.face_offsets[f + 1]; ++k) {
-      wedges.push_back(triangles.corner_wedge[k]);
+      wedge_map[triangles.corner_wedge[k]] = 0;
     }
   }
-  std::sort(wedges.begin(), wedges.end());
-  wedges.erase(std::unique(wedges.begin(), wedges.end()), wedges.end());
-  vertices.clear();
-  vertices.reserve(wedges.size());
-  for (std::uint32_t w : wedges) vertices.push_back(triangles.wedge_vertex[w]);
-  std::sort(vertices.begin(), vertices.end());
-  vertices.erase(std::unique(vertices.begin(), vertices.end()), vertices.end());
-  auto local = [](const std::vector<std::uint32_t>& ids, std::uint32_t id) {
-    return static_cast<std::uint32_t>(std::lower_bound(ids.begin(), ids.end(), id) - ids.begin());
-  };
-
-  Mesh m = empty_like(triangles);
-  m.positions.reserve(vertices.size());
-  for (std::uint32_t v : vertices) {
-    m.positions.push_back(triangles.positions[v]);
-    if (!triangles.skin.empty()) m.skin.push_back(triangles.skin[v]);
-    if (!triangles.priority.empty()) m.priority.push_back(triangles.priority[v]);
-  }
-  for (std::uint32_t w : wedges) append_wedge(m, triangles, w, local(vertices, triangles.wedge_vertex[w]));
+  Mesh m = compact_vertices_and_wedges(triangles, wedge_map, vertices);
   const bool groups = triangles.face_group.size() == triangles.face_count();
   m.face_offsets.reserve(faces.size() + 1);
   m.corner_wedge.reserve(3 * faces.size());
   for (std::uint32_t f : faces) {
     std::uint32_t w[3];
     const std::uint32_t k = triangles.face_offsets[f];
-    for (int i = 0; i < 3; ++i) w[i] = local(wedges, triangles.corner_wedge[k + i]);
+    for (int i = 0; i < 3; ++i) w[i] = wedge_map[triangles.corner_wedge[k + i]];
     m.add_face(w, 3, f < triangles.face_material.size() ? triangles.face_material[f] : 0);
     if (groups) m.face_group.push_back(triangles.face_group[f]);
   }
@@ -503,7 +480,7 @@ SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& opti
       SimplifyResult r = simplify(*mesh, o);
       ++total.tiling_passes;
       ++total.tile_runs;
-      collapse_ms += ms_since(t0);
+      collapse_ms += collapse::elapsed_ms(t0);
       add_stats(r);
       total.floors = r.floors;
       stopped = r.stop_reason == StopReason::stopped;
@@ -517,7 +494,7 @@ SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& opti
     // Tiles are the parallel unit; an engine's own threads only help when there are fewer tiles than cores.
     tile_options.threads = c.tiles.size() >= 2 * std::size_t{concurrency} ? 1 : options.threads;
     std::vector<TileRun> runs(c.tiles.size());
-    const double cut_ms = ms_since(t0);
+    const double cut_ms = collapse::elapsed_ms(t0);
     const auto t1 = std::chrono::steady_clock::now();
     arena.execute([&] {
       tbb::parallel_for(tbb::blocked_range<std::size_t>(0, c.tiles.size(), 1),
@@ -527,7 +504,7 @@ SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& opti
                           }
                         });
     });
-    collapse_ms += ms_since(t1);
+    collapse_ms += collapse::elapsed_ms(t1);
     ++total.tiling_passes;
     total.tile_runs += runs.size();
     const auto t2 = std::chrono::steady_clock::now();
@@ -539,7 +516,7 @@ SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& opti
     }
     Mesh next = stitch(*mesh, runs, locked, options);
     runs.clear();
-    total.timings.setup_ms += cut_ms + ms_since(t2);
+    total.timings.setup_ms += cut_ms + collapse::elapsed_ms(t2);
     const bool progress = next.face_count() < n;
     current = std::move(next);
     mesh = &current;
@@ -590,7 +567,7 @@ SimplifyResult simplify_maybe_tiled(const Mesh& mesh, const SimplifyOptions& opt
   if (kinds.quads != 0 || kinds.polygons != 0) triangulated_copy = triangulated(mesh);
   const Mesh& tris = triangulated_copy.face_count() != 0 ? triangulated_copy : mesh;
   if (!tiling::applies(tris, options)) return simplify(mesh, options);
-  const double triangulate_ms = tiling::ms_since(t0);
+  const double triangulate_ms = collapse::elapsed_ms(t0);
   SimplifyResult r = tiling::simplify_tiled(tris, options);
   r.triangles_before = mesh.triangle_count();
   r.quads_before = kinds.quads;
