@@ -28,6 +28,7 @@
 #include "lodforge/batch/shard.hpp"
 #include "lodforge/io/asset.hpp"
 #include "lodforge/io/file.hpp"
+#include "lodforge/tiling/tiling.hpp"
 
 namespace lodforge::cli {
 namespace {
@@ -248,9 +249,6 @@ void report_stale(const batch::RunResult& r, const fs::path& output) {
                r.stale_outputs.size(), output.string().c_str(), names.c_str());
 }
 
-// The smallest --memory-limit: below it even one small asset does not fit (it exists for tests).
-constexpr std::uint64_t kMinMemoryLimit = 16ull << 20;
-
 void run_command(const RunArgs& a) {
   std::optional<batch::BatchConfig> config = load_config_or_report(a.config);
   if (!config) return set_exit_code(2);
@@ -276,7 +274,7 @@ void run_command(const RunArgs& a) {
     std::fprintf(stderr, "error: --memory-limit: %s\n", e.what());
     return set_exit_code(2);
   }
-  if (!a.memory_limit.empty() && options.memory_limit_bytes < kMinMemoryLimit) {
+  if (!a.memory_limit.empty() && options.memory_limit_bytes < tiling::kMinMemoryLimit) {
     std::fprintf(stderr, "error: --memory-limit %s is below the smallest limit, 16M\n", a.memory_limit.c_str());
     return set_exit_code(2);
   }
