@@ -899,6 +899,16 @@ BvhHit TriangleBvh::measure(const Vec3d& p, std::uint32_t t, BvhWork& work) cons
   return {t, tp.point, tp.barycentric, dist_sq(p, tp.point)};
 }
 
+BvhHit TriangleBvh::step_closer(const Vec3d& p, const BvhHit& at, BvhWork& work) const {
+  BvhHit next = at;
+  for (int k = 0; k < 3; ++k) {
+    const std::uint32_t across = neighbor_[at.triangle][k];
+    if (at.barycentric[k] != 0 || across == kInvalidIndex) continue;  // not on the edge opposite corner k
+    if (const BvhHit h = measure(p, across, work); h.distance_sq < next.distance_sq) next = h;
+  }
+  return next;
+}
+
 BvhHit TriangleBvh::hinted(const Vec3d& p, std::uint32_t hint, BvhWork& work) const {
   if (hint >= slot_of_.size() || slot_of_[hint] == kInvalidIndex) return search(p, BvhHit{}, BvhHit{}, work);
   const BvhHit start = measure(p, hint, work);
@@ -906,12 +916,7 @@ BvhHit TriangleBvh::hinted(const Vec3d& p, std::uint32_t hint, BvhWork& work) co
   // Walk across the edge (or the two edges at the corner) the closest point lies on while that gets closer.
   BvhHit walked = start;
   for (int step = 0; step < kWalkSteps; ++step) {
-    BvhHit next = walked;
-    for (int k = 0; k < 3; ++k) {
-      const std::uint32_t across = neighbor_[walked.triangle][k];
-      if (walked.barycentric[k] != 0 || across == kInvalidIndex) continue;  // not on the edge opposite corner k
-      if (const BvhHit h = measure(p, across, work); h.distance_sq < next.distance_sq) next = h;
-    }
+    const BvhHit next = step_closer(p, walked, work);
     if (next.triangle == walked.triangle) break;
     walked = next;
   }
@@ -931,11 +936,16 @@ bool TriangleBvh::any_within(const Vec3d& p, double max_distance, std::uint32_t&
   if (empty() || !(max_distance >= 0)) return false;
   const double limit_sq = max_distance * max_distance;
   if (hint < slot_of_.size() && slot_of_[hint] != kInvalidIndex) {
-    if (measure(p, hint, work).distance_sq <= limit_sq) return true;
-    for (int k = 0; k < 3; ++k) {
-      const std::uint32_t across = neighbor_[hint][k];
-      if (across != kInvalidIndex && measure(p, across, work).distance_sq <= limit_sq) {
-        hint = across;
+    // Walk from the hint across the edge its closest point lies on while that gets closer: a coherent stream
+    // of queries then rarely needs the descent, which opens a dozen nodes.
+    BvhHit walked = measure(p, hint, work);
+    if (walked.distance_sq <= limit_sq) return true;
+    for (int step = 0; step < kWalkSteps && walked.distance_sq < INFINITY; ++step) {
+      const BvhHit next = step_closer(p, walked, work);
+      if (next.triangle == walked.triangle) break;
+      walked = next;
+      if (walked.distance_sq <= limit_sq) {
+        hint = walked.triangle;
         return true;
       }
     }

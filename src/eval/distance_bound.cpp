@@ -37,8 +37,9 @@ constexpr double kFlatSlack = 0.05;
 // ... and its walk may follow the target up to this fraction of `good_enough` off the start triangle's plane.
 constexpr double kPlaneTolerance = 0.5;
 
-Hit query(const TriangleBvh& bvh, const Vec3d& p) {
-  const BvhHit h = bvh.closest_point(p);
+// `hint`: a triangle near p (a neighbouring point's answer), which prunes the search from the start.
+Hit query(const TriangleBvh& bvh, const Vec3d& p, std::uint32_t hint) {
+  const BvhHit h = bvh.closest_point(p, hint);
   return {h.distance(), h.triangle};
 }
 
@@ -249,7 +250,7 @@ Bound bound(const Node& n, const SurfaceIndex& target, double flat_slack, double
   const Vec3d g = (n.p[0] + n.p[1] + n.p[2]) * (1.0 / 3.0);
   double r2 = 0;
   for (const Vec3d& c : n.p) r2 = std::max(r2, dot(c - g, c - g));
-  const Hit hg = query(target.bvh, g);
+  const Hit hg = query(target.bvh, g, n.h[0].triangle);
   double upper = hg.distance + std::sqrt(r2);
   // Ties: a corner on an edge or vertex of the target may name any triangle there, so try each triangle
   // named by a corner or the centroid as the common one, alone and with its flat neighbours (a LOD triangle
@@ -316,7 +317,11 @@ DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const
   // The corners once each.
   std::vector<Hit> vertex_hit(mesh.vertex_count());
   parallel_ranges(arena, corners.size(), 1024, [&](std::size_t b, std::size_t e) {
-    for (std::size_t i = b; i < e; ++i) vertex_hit[corners[i]] = query(target.bvh, to_double(mesh.positions[corners[i]]));
+    std::uint32_t hint = kInvalidIndex;  // vertices come in mesh order: the last answer is often near the next
+    for (std::size_t i = b; i < e; ++i) {
+      vertex_hit[corners[i]] = query(target.bvh, to_double(mesh.positions[corners[i]]), hint);
+      hint = vertex_hit[corners[i]].triangle;
+    }
   });
   for (std::uint32_t v : corners) out.lower = std::max(out.lower, vertex_hit[v].distance);
   out.queries += corners.size();
@@ -402,7 +407,7 @@ DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const
         Node m;  // the middle child: corners at the midpoints of q's edges 0-1, 1-2, 2-0
         for (int k = 0; k < 3; ++k) {
           m.p[k] = (q.p[k] + q.p[(k + 1) % 3]) * 0.5;
-          m.h[k] = query(target.bvh, m.p[k]);
+          m.h[k] = query(target.bvh, m.p[k], q.h[k].triangle);
         }
         Node* c = &next[4 * s];
         m.cap = q.cap;

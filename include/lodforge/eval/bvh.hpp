@@ -130,8 +130,8 @@ class TriangleBvh {
   // The closest point strictly closer than `max_distance`, or no hit. Cheap when nothing is near.
   BvhHit closest_point_within(const Vec3d& p, double max_distance) const;
   // Whether some triangle lies within `max_distance` of p (its distance as closest_point measures it).
-  // Triangle `hint` and its edge neighbours are tried first, then the descent stops at the first triangle
-  // within; `hint` becomes the triangle found. The answer depends only on the tree, never on the hint, and
+  // Triangle `hint` first, then a walk from it across the edges its closest point lies on while that gets
+  // closer, then the descent, which stops at the first triangle within; `hint` becomes the triangle found. The answer depends only on the tree, never on the hint, and
   // costs about one triangle where a coherent stream of queries all pass.
   bool any_within(const Vec3d& p, double max_distance, std::uint32_t& hint, BvhWork& work) const;
   bool any_within(const Vec3d& p, double max_distance, std::uint32_t& hint) const {
@@ -175,6 +175,9 @@ class TriangleBvh {
   BvhHit search(const Vec3d& p, BvhHit best, const BvhHit& known, BvhWork& work) const;
   BvhHit hinted(const Vec3d& p, std::uint32_t hint, BvhWork& work) const;
   BvhHit measure(const Vec3d& p, std::uint32_t triangle, BvhWork& work) const;  // one triangle in the tree
+  // The edge neighbour of at.triangle across the edge (or either edge at a corner) its closest point lies on,
+  // where that is closer to p; else `at`.
+  BvhHit step_closer(const Vec3d& p, const BvhHit& at, BvhWork& work) const;
   // Squared distance from p to child i of node `node`: its axis-aligned box, raised to its oriented box where
   // one is kept and the axis-aligned one is nearer than `limit`.
   double child_dist_sq(std::uint32_t node, int i, const Vec3d& p, double limit) const;
