@@ -51,6 +51,7 @@
 #include "lodforge/batch/report.hpp"
 #include "lodforge/core/validate.hpp"
 #include "lodforge/eval/attribute_eval.hpp"
+#include "lodforge/eval/distance_bound.hpp"
 #include "lodforge/eval/eval.hpp"
 #include "lodforge/io/asset.hpp"
 #include "lodforge/io/file.hpp"
@@ -249,6 +250,7 @@ MeshChain build_chain(const Mesh& source, const AssetClass& cls, std::size_t ass
                       unsigned jobs, const StopRequest& stop, std::atomic<bool>* expire = nullptr) {
   MeshChain chain;
   const std::size_t source_triangles = source.triangle_count();
+  std::optional<SurfaceIndex> source_index;  // the chained LODs' budgets measure against it: built once
   for (std::size_t k = 0; k < cls.lods.size(); ++k) {
     if (stop.requested()) throw TimedOut{};  // the engines poll it too; this spares a doomed LOD's setup
     LodSpec spec = cls.lods[k];
@@ -268,7 +270,13 @@ MeshChain build_chain(const Mesh& source, const AssetClass& cls, std::size_t ass
                                                                   .source_diagonal = asset_diagonal,
                                                                   .accumulated_error_abs = spent});
     options.threads = threads_for(from.triangle_count(), jobs);
-    if (chained) options.budget_reference = &source;
+    if (chained) {
+      options.budget_reference = &source;
+      if (options.verify_budget && (options.max_error_abs >= 0.0 || options.max_error_rel >= 0.0)) {
+        if (!source_index) source_index.emplace(source);
+        options.budget_reference_index = &*source_index;
+      }
+    }
     options.stop = stop;
     if (expire != nullptr) expire->store(true);
     const auto t0 = Clock::now();

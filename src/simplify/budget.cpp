@@ -183,8 +183,8 @@ std::vector<Vec3d> samples_not_in(const SurfaceIndex& s, const SurfaceKeys& own,
 // The reference surface, prepared once: its BVH (for the certified bound) and its exact keys.
 class Reference {
  public:
-  Reference(const Mesh& mesh, unsigned threads)
-      : index_(mesh), keys_(index_), arena_(threads == 0 ? tbb::task_arena::automatic : static_cast<int>(threads)),
+  Reference(const SurfaceIndex& index, unsigned threads)
+      : index_(index), keys_(index_), arena_(threads == 0 ? tbb::task_arena::automatic : static_cast<int>(threads)),
         threads_(threads) {}
 
   // Samples both ways, stopping at the first distance over the budget: output vertices and triangle centroids
@@ -318,7 +318,7 @@ class Reference {
   }
   static constexpr std::size_t kMaxSuspects = 64;
 
-  SurfaceIndex index_;
+  const SurfaceIndex& index_;
   SurfaceKeys keys_;
   std::vector<Vec3d> suspects_;
   std::vector<Vec3d> samples_;
@@ -486,8 +486,16 @@ class PrefixScreen {
 
 }  // namespace
 
-BudgetCheck measure_budget(const Mesh& output, const Mesh& reference_mesh, double budget, unsigned threads) {
-  Reference reference(reference_mesh, threads);
+const SurfaceIndex& reference_index(const SimplifyOptions& options, const Mesh& reference,
+                                    std::optional<SurfaceIndex>& local) {
+  if (options.budget_reference_index != nullptr && &reference == options.budget_reference) {
+    return *options.budget_reference_index;
+  }
+  return local.emplace(reference);
+}
+
+BudgetCheck measure_budget(const Mesh& output, const SurfaceIndex& reference_index, double budget, unsigned threads) {
+  Reference reference(reference_index, threads);
   const Measurement m = reference.measure(output, budget);
   BudgetCheck check;
   check.verified = true;
@@ -508,7 +516,8 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
   const Mesh& reference_mesh = options.budget_reference != nullptr ? *options.budget_reference : triangles;
   const StopRule stop = stop_rule(options, triangles.triangle_count(), compute_bounds(triangles).diagonal());
   const double budget = stop.max_error;
-  Reference reference(reference_mesh, options.threads);
+  std::optional<SurfaceIndex> local_index;
+  Reference reference(reference_index(options, reference_mesh, local_index), options.threads);
   std::vector<double> face_bounds;
   const GuardReference guard{.bvh = &reference.bvh(),
                              .samples = reference.samples(),

@@ -948,9 +948,15 @@ SimplifyResult run_cluster(const Mesh& mesh, const SimplifyOptions& options) {
     const auto tb = std::chrono::steady_clock::now();
     const Mesh& reference = options.budget_reference != nullptr ? *options.budget_reference : tris;
     const double budget = stop.max_error;
+    std::optional<SurfaceIndex> local_index;  // built at the first measurement
+    const SurfaceIndex* index = nullptr;
+    auto measure = [&](const Mesh& output) {
+      if (index == nullptr) index = &reference_index(options, reference, local_index);
+      return measure_budget(output, *index, budget, options.threads);
+    };
     auto holds = [&](const SimplifyResult& x, BudgetCheck& check) {
       if (options.verify_budget) {
-        check = measure_budget(x.mesh, reference, budget, options.threads);
+        check = measure(x.mesh);
         return check.within;
       }
       return x.qem_error_abs <= budget;
@@ -984,7 +990,7 @@ SimplifyResult run_cluster(const Mesh& mesh, const SimplifyOptions& options) {
           held_check = c;
         } else {
           held = unchanged(tris);
-          if (options.verify_budget) held_check = measure_budget(held->mesh, reference, budget, options.threads);
+          if (options.verify_budget) held_check = measure(held->mesh);
         }
       }
       const std::size_t rounds = r.rounds;

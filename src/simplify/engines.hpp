@@ -3,11 +3,13 @@
 #pragma once
 
 #include <cstddef>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "collapse_mesh.hpp"
 #include "lodforge/core/mesh.hpp"
+#include "lodforge/eval/distance_bound.hpp"
 #include "lodforge/metric/stop_rule.hpp"
 #include "lodforge/simplify/policies.hpp"
 #include "lodforge/simplify/simplify.hpp"
@@ -49,7 +51,11 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
                                  const CollapsePolicies& policies, bool incremental = true, bool guarded = true,
                                  std::vector<CollapseRecord>* log = nullptr);
 // The same measurement of one output (no back-off).
-BudgetCheck measure_budget(const Mesh& output, const Mesh& reference, double budget, unsigned threads);
+BudgetCheck measure_budget(const Mesh& output, const SurfaceIndex& reference, double budget, unsigned threads);
+// The surface index of `reference` for measurements against it: the options' budget_reference_index where
+// `reference` is their budget_reference and they carry one, else `local`, built here.
+const SurfaceIndex& reference_index(const SimplifyOptions& options, const Mesh& reference,
+                                    std::optional<SurfaceIndex>& local);
 
 // The options' targets and budgets as the one stop rule of every engine; `diagonal` that of the mesh's
 // bounding box.

@@ -208,7 +208,8 @@ enum class PolychordPath { quad_only, handed_over, restarted };
 // engine makes the LOD from the input. `measured` counts the outputs measured.
 template <typename QuadOptions>
 SimplifyResult hold_polychord_budget(const Mesh& mesh, const SimplifyOptions& options, const CollapsePolicies& policies,
-                                     const Mesh& reference, const quad::PolychordResult& q,
+                                     const Mesh& reference, const SurfaceIndex& reference_index,
+                                     const quad::PolychordResult& q,
                                      const QuadOptions& quad_options, PolychordPath path, std::size_t& measured) {
   const auto t0 = std::chrono::steady_clock::now();
   const StopRule stop = collapse::stop_rule(options, mesh.triangle_count(), compute_bounds(mesh).diagonal());
@@ -222,9 +223,10 @@ SimplifyResult hold_polychord_budget(const Mesh& mesh, const SimplifyOptions& op
   SimplifyOptions rest = options;
   rest.engine = Engine::edge_collapse;
   rest.budget_reference = &reference;
+  rest.budget_reference_index = &reference_index;
   BudgetCheck quad_check;
   if (path == PolychordPath::handed_over) {
-    quad_check = collapse::measure_budget(q.mesh, reference, stop.max_error, options.threads);
+    quad_check = collapse::measure_budget(q.mesh, reference_index, stop.max_error, options.threads);
     ++measured;
   }
   if (quad_check.within) {
@@ -250,7 +252,7 @@ SimplifyResult hold_polychord_budget(const Mesh& mesh, const SimplifyOptions& op
     const std::size_t mid = fails + (holds - fails) / 2;
     quad::PolychordResult trial = quad::simplify_polychord(mesh, quad_options(mid));
     if (trial.stopped) return stopped_quad_result(mesh, std::move(trial), 0.0);
-    const BudgetCheck c = collapse::measure_budget(trial.mesh, reference, stop.max_error, options.threads);
+    const BudgetCheck c = collapse::measure_budget(trial.mesh, reference_index, stop.max_error, options.threads);
     ++measured;
     if (c.within) {
       holds = mid;
@@ -331,9 +333,11 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options, c
   const double diagonal = compute_bounds(mesh).diagonal();
   if (verifies_budget(options) && r.stop_reason != StopReason::stopped) {
     const Mesh& reference = options.budget_reference != nullptr ? *options.budget_reference : mesh;
-    BudgetCheck check = collapse::measure_budget(r.mesh, reference, stop.max_error, options.threads);
+    std::optional<SurfaceIndex> local_index;
+    const SurfaceIndex& index = collapse::reference_index(options, reference, local_index);
+    BudgetCheck check = collapse::measure_budget(r.mesh, index, stop.max_error, options.threads);
     std::size_t measured = check.prefixes_measured;
-    if (!check.within) r = hold_polychord_budget(mesh, options, policies, reference, q, quad_options, path, measured);
+    if (!check.within) r = hold_polychord_budget(mesh, options, policies, reference, index, q, quad_options, path, measured);
     else r.budget = check;
     r.budget.prefixes_measured = measured;
     r.error_bound_abs = r.budget.bound_abs;

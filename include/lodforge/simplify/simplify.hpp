@@ -33,6 +33,8 @@
 
 namespace lodforge {
 
+struct SurfaceIndex;
+
 enum class Engine {
   edge_collapse,    // greedy QEM edge collapse, versioned queue, parallel batched re-evaluation (default)
   multiple_choice,  // Wu-Kobbelt: best of k sampled candidates per step (fast preset)
@@ -157,6 +159,9 @@ struct SimplifyOptions {
   // previous LOD, so that errors along a chain do not add up. false: the engine's QEM error alone stops it.
   bool verify_budget = true;
   const Mesh* budget_reference = nullptr;
+  // budget_reference's surface index (eval/distance_bound.hpp), where the caller builds it once for several
+  // simplify() calls against the same reference (the LODs of a chain); null: each call builds its own.
+  const SurfaceIndex* budget_reference_index = nullptr;
 
   // A deadline or cancel flag (core/stop.hpp) polled between rounds of collapses (every engine) and between
   // the budget's measurements; once requested, simplify() returns the mesh as far as it got with stop_reason

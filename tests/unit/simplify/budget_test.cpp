@@ -9,6 +9,7 @@
 
 #include "engines.hpp"
 #include "lodforge/eval/bvh.hpp"
+#include "lodforge/eval/distance_bound.hpp"
 #include "lodforge/eval/eval.hpp"
 #include "lodforge/simplify/policies.hpp"
 #include "lodforge/simplify/simplify.hpp"
@@ -159,6 +160,25 @@ TEST(ErrorBudget, ChainsAreMeasuredAgainstTheReference) {
   EXPECT_TRUE(second.budget.within);
   EXPECT_LE(evaluate(sphere, second.mesh).hausdorff_rel(), 0.006 * (1 + kSamplingTolerance));
   EXPECT_LT(second.triangles_after, first.triangles_after);
+}
+
+// A chain's LODs may share one index of the reference: the same LOD as each building its own.
+TEST(ErrorBudget, ASharedReferenceIndexGivesTheSameLod) {
+  const Mesh sphere = make_bumpy_sphere(40, 60);
+  const SimplifyResult first = simplify(sphere, {.target_ratio = 0.001, .max_error_rel = 0.003});
+  const double diag = compute_bounds(sphere).diagonal();
+  SimplifyOptions next{.target_ratio = 0.001, .max_error_abs = 0.006 * diag};
+  next.budget_reference = &sphere;
+  const SimplifyResult own = simplify(first.mesh, next);
+  const SurfaceIndex index(sphere);
+  next.budget_reference_index = &index;
+  const SimplifyResult shared = simplify(first.mesh, next);
+  EXPECT_EQ(shared.mesh.positions, own.mesh.positions);
+  EXPECT_EQ(shared.mesh.corner_wedge, own.mesh.corner_wedge);
+  EXPECT_EQ(shared.mesh.wedge_vertex, own.mesh.wedge_vertex);
+  EXPECT_EQ(shared.budget.bound_abs, own.budget.bound_abs);
+  EXPECT_EQ(shared.budget.reverse_abs, own.budget.reverse_abs);
+  EXPECT_TRUE(shared.budget.within);
 }
 
 TEST(ErrorBudget, PolychordOutputsAreMeasuredToo) {
