@@ -151,6 +151,8 @@ std::string with_option_names(const std::string& problem) {
       {"skin_weight_threshold", "--skin-threshold"},
       {"skin_max_distance", "--skin-max-distance"},
       {"tile_triangles", "--tile-triangles"},
+      {"conservative", "--conservative"},
+      {"max_volume_growth", "--max-volume-growth (as a fraction)"},
   };
   for (const auto& [field, option] : kNames) {
     const std::string f(field);
@@ -242,6 +244,8 @@ void register_simplify(CLI::App& app) {
     double max_error_rel = -1;
     bool keep_attributes = false;
     std::string seams = "relax";
+    std::string conservative = "none";
+    double max_volume_growth_pct = -1;
     std::string tiling = "auto";
     std::string memory_limit;
     bool evaluate = false;
@@ -293,6 +297,15 @@ void register_simplify(CLI::App& app) {
   cmd->add_option("--skin-max-distance", a->opt.skin_max_distance,
                   "vertices of different dominant bones merge only below this L1 weight distance")
       ->default_val(a->opt.skin_max_distance);
+  cmd->add_option("--conservative", a->conservative,
+                  "none | bounding | occluder: a LOD that contains the input (collision) or lies inside it "
+                  "(occlusion culling); edge_collapse and multiple_choice engines, borders of open meshes locked "
+                  "(docs/conservative.md)")
+      ->default_val(a->conservative)
+      ->check(CLI::IsMember({"none", "bounding", "occluder"}));
+  cmd->add_option("--max-volume-growth", a->max_volume_growth_pct,
+                  "PCT: with --conservative, stop before the LOD's volume grows (bounding) or shrinks (occluder) by "
+                  "more than this percentage of the input's");
   cmd->add_option("--tiling", a->tiling,
                   "auto | on | off: cut huge meshes into spatial tiles simplified in parallel with locked shared "
                   "borders, stitched and re-cut on a shifted grid (auto: from 1,000,000 triangles; triangle "
@@ -314,6 +327,10 @@ void register_simplify(CLI::App& app) {
     opt.seams = a->seams == "keep" ? SeamMode::keep : a->seams == "relax" ? SeamMode::relax : SeamMode::relax_materials;
     opt.max_error_rel = a->max_error_rel;
     opt.verify_budget = !a->no_verify;
+    opt.conservative = a->conservative == "bounding"   ? Conservative::bounding
+                       : a->conservative == "occluder" ? Conservative::occluder
+                                                       : Conservative::none;
+    opt.max_volume_growth = a->max_volume_growth_pct >= 0.0 ? a->max_volume_growth_pct / 100.0 : -1.0;
     if (a->engine == "edge_collapse") opt.engine = Engine::edge_collapse;
     else if (a->engine == "multiple_choice") opt.engine = Engine::multiple_choice;
     else if (a->engine == "polychord") opt.engine = Engine::polychord;
