@@ -557,6 +557,10 @@ Evaluation CollapseMesh::evaluate(std::uint32_t u, std::uint32_t v, bool with_co
       ev.error = reach;
     }
   }
+  if (cons_volume_weight_ > 0.0) {  // bounding: the volume it adds (setup_conservative())
+    const double dv = std::abs(volume_change(u, v, ev.position)) / (scale_ * scale_ * scale_);
+    ev.cost += cons_volume_weight_ * std::sqrt(mean_area_) * dv;
+  }
   if (skin_cost_scale_ > 0.0 && with_cost) ev.cost += skin_cost(u, v);
   if (policies_ != nullptr && policies_->cost && with_cost) ev.cost = std::max(0.0, policies_->cost(candidate(u, v, ev)));
   return ev;

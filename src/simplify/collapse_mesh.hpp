@@ -434,6 +434,7 @@ class CollapseMesh {
   double cons_margin_ = 0.0;     // the same for the placement solve, plus what float rounding may take away
   double cons_band_ = 0.0;       // rubber-band weight per anchor in the placement solve (> 0: A positive definite)
   double input_volume_ = 0.0;    // model units³
+  double cons_volume_weight_ = 0.0;  // bounding: the added volume's weight in the ordering key
 
   // What a candidate evaluation reads about a vertex, in two adjacent cache lines.
   struct alignas(64) Vertex {

@@ -19,6 +19,8 @@
 namespace lodforge::collapse {
 namespace {
 
+// Weight of the volume a bounding collapse adds in its cost (setup_conservative()).
+constexpr double kVolumeCostWeight = 100.0;
 // Planes whose unit normals and offsets agree this closely count as one (flat regions repeat their plane).
 constexpr double kSamePlane = 1e-12;
 
@@ -291,6 +293,12 @@ void CollapseMesh::setup_conservative() {
   for (int i = 0; i < 3; ++i) magnitude = std::max(magnitude, std::abs(origin_[i]) + 2.0 * scale_);
   const double rounding = std::sqrt(3.0) * std::ldexp(magnitude, -24) / scale_;
   cons_slack_ = 1e-9;
+  // Bounding hulls grow where the quadric sees little error (thin parts, saddles): the volume a collapse adds
+  // joins its cost, as a length (the input's mean edge scale) times the volume. On the closed scanned corpus at
+  // 2% (lodforge_bench_conservative), weight 100 lowers the volume overhead of dragon from 21.7% to 17.7% and of
+  // lucy from 17.1% to 15.4% (1 and 10 gain less, 100000 orders by volume alone and loses: dragon 36.8%).
+  // Occluders keep the quadric alone: the term cost them silhouette (dragon 93.6% -> 91.4%).
+  if (options_.conservative == Conservative::bounding) cons_volume_weight_ = kVolumeCostWeight;
   cons_margin_ = 1.5 * rounding + 2.0 * cons_slack_;
   cons_band_ = reg_weight_ > 0.0 ? reg_weight_ : 1e-3 * mean_area_;
   if (!(cons_band_ > 0.0)) cons_band_ = 1e-12;

@@ -99,14 +99,13 @@ TEST(Conservative, DefaultOptionsUnchanged) {
 
 TEST(Conservative, InfeasibleCollapsesAreParked) {
   // A thin plate taken as far as it goes: a bounding collapse across the thickness would have to lie above the
-  // top and below the bottom, so the last ones are infeasible; the engine parks them and stops at the box.
+  // top and below the bottom, so many are infeasible; the engine parks them and goes on until nothing is left.
   const Mesh plate = conservative_test::make_plate(24);
   for (Conservative mode : {Conservative::bounding, Conservative::occluder}) {
     const SimplifyResult r = simplify(plate, {.target_ratio = 0.0001, .max_batch = 1, .conservative = mode});
     EXPECT_EQ(r.stop_reason, StopReason::no_valid_collapse);
     if (mode == Conservative::bounding) {
       EXPECT_GT(r.vetoes[Veto::conservative], 0u);
-      EXPECT_EQ(r.triangles_after, 12u);
     }
     EXPECT_TRUE(validate(r.mesh).ok());
     EXPECT_EQ(nesting_problem(plate, r.mesh, mode, 2000), "") << conservative_name(mode);
