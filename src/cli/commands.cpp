@@ -137,6 +137,21 @@ bool output_writable(const std::string& out) {
   }
 }
 
+// Signed volume of a mesh's faces (fan-triangulated), model units³: what a closed mesh encloses.
+double signed_volume(const Mesh& m) {
+  double v = 0.0;
+  for (std::size_t f = 0; f < m.face_count(); ++f) {
+    const std::uint32_t c = m.face_offsets[f];
+    const Vec3d p0 = to_double(m.positions[m.corner_vertex(c)]);
+    for (std::uint32_t k = 1; k + 1 < m.face_size(f); ++k) {
+      const Vec3d p1 = to_double(m.positions[m.corner_vertex(c + k)]);
+      const Vec3d p2 = to_double(m.positions[m.corner_vertex(c + k + 1)]);
+      v += dot(cross(p0, p1), p2);
+    }
+  }
+  return v / 6.0;
+}
+
 // SimplifyOptions::validate() names its fields; on the command line the user wrote options.
 std::string with_option_names(const std::string& problem) {
   static const std::pair<const char*, const char*> kNames[] = {
@@ -152,7 +167,7 @@ std::string with_option_names(const std::string& problem) {
       {"skin_max_distance", "--skin-max-distance"},
       {"tile_triangles", "--tile-triangles"},
       {"conservative", "--conservative"},
-      {"max_volume_growth", "--max-volume-growth (as a fraction)"},
+      {"max_volume_growth", "--max-volume-growth"},
   };
   for (const auto& [field, option] : kNames) {
     const std::string f(field);
@@ -423,6 +438,12 @@ void register_simplify(CLI::App& app) {
           std::string floors;
           for (const std::string& f : r.floors) floors += (floors.empty() ? "" : ", ") + f;
           std::printf("  target not reached, held by: %s\n", floors.c_str());
+        }
+        if (opt.conservative != Conservative::none) {
+          const double v0 = signed_volume(src), v1 = signed_volume(r.mesh);
+          std::printf("  conservative %s: volume %+.3f%% of the input's (%zu collapse(s) refused by the rule)\n",
+                      conservative_name(opt.conservative), v0 != 0.0 ? 100.0 * (v1 / v0 - 1.0) : 0.0,
+                      r.vetoes[Veto::conservative]);
         }
         if (r.budget.verified) {
           // Measurements stop at the first distance over the budget: those print as "over".
