@@ -152,6 +152,27 @@ double signed_volume(const Mesh& m) {
   return v / 6.0;
 }
 
+// Whether every edge of the mesh's faces is shared by exactly two faces (a volume means something).
+bool closed(const Mesh& m) {
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> edges;
+  edges.reserve(m.corner_count());
+  for (std::size_t f = 0; f < m.face_count(); ++f) {
+    const std::uint32_t c = m.face_offsets[f], n = m.face_size(f);
+    for (std::uint32_t k = 0; k < n; ++k) {
+      const std::uint32_t a = m.corner_vertex(c + k), b = m.corner_vertex(c + (k + 1) % n);
+      edges.emplace_back(std::min(a, b), std::max(a, b));
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  for (std::size_t i = 0; i < edges.size();) {
+    std::size_t j = i;
+    while (j < edges.size() && edges[j] == edges[i]) ++j;
+    if (j - i != 2) return false;
+    i = j;
+  }
+  return !edges.empty();
+}
+
 // SimplifyOptions::validate() names its fields; on the command line the user wrote options.
 std::string with_option_names(const std::string& problem) {
   static const std::pair<const char*, const char*> kNames[] = {
@@ -314,8 +335,8 @@ void register_simplify(CLI::App& app) {
       ->default_val(a->opt.skin_max_distance);
   cmd->add_option("--conservative", a->conservative,
                   "none | bounding | occluder: a LOD that contains the input (collision) or lies inside it "
-                  "(occlusion culling); edge_collapse and multiple_choice engines, borders of open meshes locked "
-                  "(docs/conservative.md)")
+                  "(occlusion culling); edge_collapse and multiple_choice engines; on open meshes the rim keeps "
+                  "its outline (docs/conservative.md)")
       ->default_val(a->conservative)
       ->check(CLI::IsMember({"none", "bounding", "occluder"}));
   cmd->add_option("--max-volume-growth", a->max_volume_growth_pct,
@@ -439,7 +460,7 @@ void register_simplify(CLI::App& app) {
           for (const std::string& f : r.floors) floors += (floors.empty() ? "" : ", ") + f;
           std::printf("  target not reached, held by: %s\n", floors.c_str());
         }
-        if (opt.conservative != Conservative::none) {
+        if (opt.conservative != Conservative::none && closed(src)) {
           const double v0 = signed_volume(src), v1 = signed_volume(r.mesh);
           std::printf("  conservative %s: volume %+.3f%% of the input's (%zu collapse(s) refused by the rule)\n",
                       conservative_name(opt.conservative), v0 != 0.0 ? 100.0 * (v1 / v0 - 1.0) : 0.0,

@@ -257,8 +257,7 @@ void CollapseMesh::setup(Parallel& parallel) {
     if (priority[v] >= options_.priority_lock) user_locked[v] = 1;
   }
   const bool preserve = options_.border_mode == BorderMode::preserve;
-  // Conservative modes lock borders: an open rim has no inside to nest, and a moved rim vertex could open a gap.
-  const bool lock_border = options_.border_mode == BorderMode::lock || options_.conservative != Conservative::none;
+  const bool lock_border = options_.border_mode == BorderMode::lock;
   lock_reason_.assign(nv, 0);
 
   // Face planes once per face (unit normal, offset, area); each vertex then sums its faces' quadrics.
@@ -801,7 +800,11 @@ Check CollapseMesh::check(std::uint32_t u, std::uint32_t v, const Vec3d& x, Scra
 
   // Conservative modes: the side of every face plane around a and b (an infeasible edge was given a placement
   // that fails here, and a neighbour's collapse may have moved a plane since the evaluation).
-  if (cons_side_ != 0.0 && !conservative_ok(a, b, x)) {
+  // On a rim, only a straight rim vertex may go, and only onto a rim neighbour that stays where it is.
+  if (cons_side_ != 0.0 &&
+      (!conservative_ok(a, b, x) ||
+       (!rim_.empty() && ((rim_[a] != 0 && (rim_[a] != kRimStraight || rim_[b] == 0 || !(vx_[b].pos == x))) ||
+                          (rim_[b] != 0 && !(vx_[b].pos == x)))))) {
     c.veto = Veto::conservative;
     return c;
   }

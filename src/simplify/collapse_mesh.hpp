@@ -262,8 +262,15 @@ class CollapseMesh {
   VertexKind kind(std::uint32_t v) const { return kind_[v]; }
   EdgeRule rule(std::uint32_t u, std::uint32_t v) const {
     const EdgeRule r = kEdgeRule[static_cast<int>(kind_[u])][static_cast<int>(kind_[v])];
-    if (stage_ < SeamStage::uv) return r;
-    return movable_corner(u, v) ? EdgeRule::either : r;
+    if (stage_ >= SeamStage::uv && movable_corner(u, v)) return EdgeRule::either;
+    if (rim_.empty() || r != EdgeRule::optimal || (rim_[u] | rim_[v]) == 0) return r;
+    // Conservative modes on an open mesh: rim vertices never move; a straight one may go onto a rim neighbour.
+    if (rim_[u] != 0 && rim_[v] != 0) {
+      return rim_[v] == kRimStraight   ? EdgeRule::keep_u
+             : rim_[u] == kRimStraight ? EdgeRule::keep_v
+                                       : EdgeRule::forbidden;
+    }
+    return rim_[u] != 0 ? EdgeRule::keep_u : EdgeRule::keep_v;
   }
 
   // Seam relaxation (SeamStage). stage() is the stage in force; relax() moves to the next stage the options
@@ -407,6 +414,7 @@ class CollapseMesh {
   void setup(Parallel& parallel);
   void setup_attributes(Parallel& parallel);
   void setup_conservative();
+  void setup_rim();
   // Guarded budget (budget_guard.cpp): each reference sample attached to its nearest working face at the start;
   // guard_ok() is check()'s last test, guard_reattach() moves the samples of the faces apply() changed.
   void setup_guard(const GuardReference& guard, Parallel& parallel);
@@ -435,6 +443,11 @@ class CollapseMesh {
   double cons_band_ = 0.0;       // rubber-band weight per anchor in the placement solve (> 0: A positive definite)
   double input_volume_ = 0.0;    // model units³
   double cons_volume_weight_ = 0.0;  // bounding: the added volume's weight in the ordering key
+  // Conservative modes on a mesh with a boundary: per vertex, 0 (not on it), kRimStraight (its two boundary
+  // edges are collinear seen along the mesh's dominant axis: it may be removed onto a boundary neighbour) or
+  // kRimFixed (a corner of the rim: kept). Rim vertices never move. Empty otherwise.
+  static constexpr std::uint8_t kRimStraight = 1, kRimFixed = 2;
+  std::vector<std::uint8_t> rim_;
 
   // What a candidate evaluation reads about a vertex, in two adjacent cache lines.
   struct alignas(64) Vertex {

@@ -283,6 +283,60 @@ std::optional<Vec3d> CollapseMesh::conservative_place(std::uint32_t u, std::uint
   return fallback;
 }
 
+// An open rim has no inside to nest: its vertices stay where they are. Seen along the axis closest to the
+// mesh's mean normal (up, for a terrain), a rim vertex whose two rim edges continue each other in a straight line
+// may still be removed onto a neighbour on the rim: the rim's outline is then unchanged (a terrain tile keeps
+// its straight sides) and the half-space rule on the faces around it keeps the surface on its side.
+void CollapseMesh::setup_rim() {
+  const std::size_t nv = vx_.size();
+  std::vector<std::uint32_t> ends;  // per vertex: neighbours met once (rim edges), as collected
+  Vec3d normal{};
+  for (std::size_t f = 0; f < tri_source_.size(); ++f) {
+    const std::uint32_t* t = &tri_[3 * f];
+    const Vec3d n = cross(vx_[t[1]].pos - vx_[t[0]].pos, vx_[t[2]].pos - vx_[t[0]].pos);
+    if (finite3(n)) normal = normal + n;
+  }
+  int up = 0;
+  for (int i = 1; i < 3; ++i) {
+    if (std::abs(normal[i]) > std::abs(normal[up])) up = i;
+  }
+  const int i0 = (up + 1) % 3, i1 = (up + 2) % 3;
+  bool any = false;
+  std::vector<std::uint8_t> rim(nv, 0);
+  std::vector<std::uint32_t> nb;
+  for (std::uint32_t v = 0; v < nv; ++v) {
+    if (size_[v] == 0 || kind_[v] == VertexKind::frozen) continue;
+    nb.clear();
+    const std::uint32_t* fl = star(v);
+    for (std::uint32_t i = 0; i < size_[v]; ++i) {
+      const std::uint32_t* t = &tri_[3 * std::size_t{fl[i]}];
+      for (int j = 0; j < 3; ++j) {
+        if (t[j] != v) nb.push_back(t[j]);
+      }
+    }
+    std::sort(nb.begin(), nb.end());
+    ends.clear();
+    for (std::size_t i = 0; i < nb.size();) {
+      std::size_t j = i;
+      while (j < nb.size() && nb[j] == nb[i]) ++j;
+      if (j - i == 1) ends.push_back(nb[i]);
+      i = j;
+    }
+    if (ends.empty()) continue;
+    any = true;
+    rim[v] = kRimFixed;
+    if (ends.size() != 2 || kind_[v] == VertexKind::locked) continue;
+    const Vec3d& p = vx_[ends[0]].pos;
+    const Vec3d& q = vx_[ends[1]].pos;
+    const Vec3d& a = vx_[v].pos;
+    const double e0 = a[i0] - p[i0], e1 = a[i1] - p[i1], f0 = q[i0] - a[i0], f1 = q[i1] - a[i1];
+    const double cr = e0 * f1 - e1 * f0, dt = e0 * f0 + e1 * f1;
+    const double len2 = (e0 * e0 + e1 * e1) * (f0 * f0 + f1 * f1);
+    if (dt > 0.0 && cr * cr <= 1e-24 * len2) rim[v] = kRimStraight;
+  }
+  if (any) rim_.swap(rim);
+}
+
 void CollapseMesh::setup_conservative() {
   if (options_.conservative == Conservative::none) return;
   cons_side_ = options_.conservative == Conservative::bounding ? 1.0 : -1.0;
@@ -302,6 +356,7 @@ void CollapseMesh::setup_conservative() {
   cons_margin_ = 1.5 * rounding + 2.0 * cons_slack_;
   cons_band_ = reg_weight_ > 0.0 ? reg_weight_ : 1e-3 * mean_area_;
   if (!(cons_band_ > 0.0)) cons_band_ = 1e-12;
+  setup_rim();
   double vol = 0.0;
   for (std::size_t f = 0; f < tri_source_.size(); ++f) {
     const std::uint32_t* t = &tri_[3 * f];

@@ -135,8 +135,9 @@ struct SimplifyOptions {
   // relative to the queue, see edge_collapse.cpp), 1 = strictly sequential greedy. Output depends on this
   // value but never on `threads`.
   std::size_t max_batch = 0;
-  // Nesting with the input (Conservative). Triangle engines only (edge_collapse, multiple_choice); border
-  // vertices of open meshes are locked in these modes.
+  // Nesting with the input (Conservative). Triangle engines only (edge_collapse, multiple_choice). On open
+  // meshes rim vertices never move; one whose two rim edges are collinear seen along the mesh's dominant axis
+  // may be removed onto a rim neighbour (a terrain tile's straight sides thin out, its outline stays).
   Conservative conservative = Conservative::none;
   // Conservative modes: the run stops before the LOD's volume differs from the input's by more than this
   // fraction of the input's volume (bounding: growth; occluder: loss). Negative = unlimited.

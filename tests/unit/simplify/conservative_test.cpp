@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -244,6 +245,81 @@ TEST(Conservative, CorpusClosedScans) {
     // against the 29k source triangles.
     EXPECT_EQ(nesting_problem(src, r.mesh, mode, mode == Conservative::bounding ? 10000 : 2000), "")
         << conservative_name(mode);
+  }
+}
+
+}  // namespace
+}  // namespace lodforge
+
+namespace lodforge {
+namespace {
+
+// A bumpy height field over [0, n]², open: its rim (the four straight sides) keeps its outline.
+Mesh make_terrain(int n) {
+  Mesh m;
+  for (int y = 0; y <= n; ++y) {
+    for (int x = 0; x <= n; ++x) {
+      const double z = 0.8 * std::sin(0.4 * x) * std::cos(0.3 * y) + 0.3 * std::sin(1.3 * x + 0.7 * y);
+      m.add_vertex_with_wedge({{float(x), float(y), float(z)}});
+    }
+  }
+  auto id = [&](int x, int y) { return static_cast<std::uint32_t>(y * (n + 1) + x); };
+  for (int y = 0; y < n; ++y) {
+    for (int x = 0; x < n; ++x) {
+      m.add_face({id(x, y), id(x + 1, y), id(x + 1, y + 1)});
+      m.add_face({id(x, y), id(x + 1, y + 1), id(x, y + 1)});
+    }
+  }
+  return conservative_test::with_material(std::move(m));
+}
+
+// Height of the triangles at (x, y) (the highest or lowest where several cover it); nullopt where none does.
+std::optional<double> height_at(const std::vector<Tri>& tris, double x, double y, bool highest) {
+  std::optional<double> out;
+  for (const Tri& t : tris) {
+    const double d = (t[1][1] - t[2][1]) * (t[0][0] - t[2][0]) + (t[2][0] - t[1][0]) * (t[0][1] - t[2][1]);
+    if (d == 0.0) continue;
+    const double l0 = ((t[1][1] - t[2][1]) * (x - t[2][0]) + (t[2][0] - t[1][0]) * (y - t[2][1])) / d;
+    const double l1 = ((t[2][1] - t[0][1]) * (x - t[2][0]) + (t[0][0] - t[2][0]) * (y - t[2][1])) / d;
+    const double l2 = 1.0 - l0 - l1;
+    constexpr double e = -1e-9;
+    if (l0 < e || l1 < e || l2 < e) continue;
+    const double z = l0 * t[0][2] + l1 * t[1][2] + l2 * t[2][2];
+    out = !out ? z : highest ? std::max(*out, z) : std::min(*out, z);
+  }
+  return out;
+}
+
+TEST(Conservative, OpenTerrainStaysOnItsSide) {
+  // Bounding: the LOD is above the terrain wherever the terrain is; occluder: below. Rim vertices never move,
+  // the straight sides lose vertices, the four corners stay.
+  const Mesh terrain = make_terrain(40);
+  const std::vector<Tri> src = triangles_of(terrain);
+  const double tol = kTouch * diagonal_of(src);
+  for (Conservative mode : {Conservative::bounding, Conservative::occluder}) {
+    SCOPED_TRACE(conservative_name(mode));
+    const SimplifyResult r = simplify(terrain, {.target_ratio = 0.05, .conservative = mode});
+    EXPECT_TRUE(validate(r.mesh).ok());
+    EXPECT_LE(r.triangles_after, terrain.triangle_count() / 10);
+    const std::vector<Tri> lod = triangles_of(r.mesh);
+    EXPECT_EQ(count_crossings(lod, src, tol), 0u);
+    const bool bounding = mode == Conservative::bounding;
+    std::size_t wrong = 0, uncovered = 0;
+    for (const Vec3d& p : conservative_test::test_points(terrain, 3000)) {
+      const std::optional<double> z = height_at(lod, p[0], p[1], !bounding);
+      if (!z) {
+        ++uncovered;
+      } else if (bounding ? *z < p[2] - tol : *z > p[2] + tol) {
+        ++wrong;
+      }
+    }
+    EXPECT_EQ(uncovered, 0u);
+    EXPECT_EQ(wrong, 0u);
+    // The rim kept its corners and lost vertices along its sides.
+    std::size_t rim = 0;
+    for (const Vec3f& p : r.mesh.positions) rim += p[0] == 0.0f || p[1] == 0.0f || p[0] == 40.0f || p[1] == 40.0f;
+    EXPECT_GE(rim, 4u);
+    EXPECT_LT(rim, 160u);
   }
 }
 
