@@ -30,6 +30,9 @@
 #                                         targets tiled <= 0.5x meshopt's time, RMS and mean <= 1.1x untiled; --side N
 #                                         (default 1415: 4.0M triangles; 2900: 16.8M), --ratio, --threads, --tile-triangles,
 #                                         --eval-samples, --skip-untiled; JSON: $BUILD_DIR/bench/bench-tiling.json)
+#   scripts/bench.sh conservative [ARGS...] only lodforge_bench_conservative (conservative LODs, docs/conservative.md:
+#                                         bounding volume overhead vs the naive offset hull, occluder silhouettes on
+#                                         the closed scanned corpus; --ratio, --raster, --file, --corpus)
 #   scripts/bench.sh budget [ARGS...]     only lodforge_bench_budget (error budgets, docs/budgets.md: the LOD simplify()
 #                                         makes with a budget vs its reported bound and the measured Hausdorff, vs
 #                                         the longest holding prefix of the same collapse sequence and vs meshopt at
@@ -94,16 +97,17 @@ BUDGET="$BUILD_DIR/tests/bench/lodforge_bench_budget"
 REPORT="$BUILD_DIR/tests/bench/lodforge_bench_report"
 CLUSTER="$BUILD_DIR/tests/bench/lodforge_bench_cluster"
 TILING="$BUILD_DIR/tests/bench/lodforge_bench_tiling"
+CONSERVATIVE="$BUILD_DIR/tests/bench/lodforge_bench_conservative"
 mode=all
 case "${1:-}" in
-  simplify | load | batch | quad | attributes | eval | budget | report | cluster | tiling) mode=$1; shift ;;
+  simplify | load | batch | quad | attributes | eval | budget | report | cluster | tiling | conservative) mode=$1; shift ;;
 esac
 # The binaries this mode runs must be built (the combined mode runs simplify, load and batch).
 case $mode in
   all) needed=("$SIMPLIFY" "$LOAD" "$BATCH") ;;
   simplify) needed=("$SIMPLIFY") ;; load) needed=("$LOAD") ;; batch) needed=("$BATCH") ;; quad) needed=("$QUAD") ;;
   attributes) needed=("$ATTRIBUTES") ;; eval) needed=("$EVAL") ;; budget) needed=("$BUDGET") ;; report) needed=("$REPORT") ;;
-  cluster) needed=("$CLUSTER") ;; tiling) needed=("$TILING") ;;
+  cluster) needed=("$CLUSTER") ;; tiling) needed=("$TILING") ;; conservative) needed=("$CONSERVATIVE") ;;
 esac
 for b in "${needed[@]}"; do
   if [ ! -x "$b" ]; then
@@ -139,6 +143,7 @@ case $mode in
   budget) "$BUDGET" "$@" ;;
   cluster) "$CLUSTER" "$@" ;;
   tiling) "$TILING" --json "$OUT_DIR/bench-tiling.json" "$@" ;;
+  conservative) "$CONSERVATIVE" "$@" ;;
   report) "$REPORT" --out "$OUT_DIR/report" "$@" ;;
   attributes) "$ATTRIBUTES" --json "$OUT_DIR/bench-attributes.json" "$@" ;;
   all)

@@ -303,6 +303,12 @@ constexpr EnumName<Engine> kEngineNames[] = {
     {"cluster", Engine::cluster},
 };
 
+constexpr EnumName<Conservative> kConservativeNames[] = {
+    {"none", Conservative::none},
+    {"bounding", Conservative::bounding},
+    {"occluder", Conservative::occluder},
+};
+
 constexpr EnumName<BorderMode> kBorderNames[] = {
     {"free", BorderMode::free},
     {"preserve", BorderMode::preserve},
@@ -396,10 +402,14 @@ void apply_fields(const Json& object, const std::string& path, const std::vector
   }
 }
 
+// A field that writes null is left out (an option shown only where it is set).
 template <class Target>
 Json write_fields(const std::vector<Field<Target>>& fields, const Target& target) {
   Json out = Json::object();
-  for (const Field<Target>& f : fields) out[std::string(f.key)] = f.write(target);
+  for (const Field<Target>& f : fields) {
+    Json value = f.write(target);
+    if (!value.is_null()) out[std::string(f.key)] = std::move(value);
+  }
   return out;
 }
 
@@ -500,6 +510,40 @@ const std::vector<Field<AttributeWeights>>& attribute_weight_fields() {
   return fields;
 }
 
+// Conservative LODs (collision hulls, occluders) are separate outputs, never render levels of a chain, and the
+// runner does not write such outputs yet: the keys parse, and any value that asks for one is refused. Left out of
+// the effective config at their defaults, so that cache keys stay as they were.
+constexpr std::string_view kNoConservativeOutputs =
+    "collision and occluder LODs are separate outputs, not render levels of a LOD chain; the batch runner does "
+    "not write them yet (use `lodforge simplify --conservative bounding|occluder`, docs/conservative.md)";
+
+Field<LodOptions> conservative_field() {
+  return {"conservative",
+          [](const Json& v, const std::string& path, LodOptions& o, Problems& p) {
+            const auto x = read_enum(v, path, std::span<const EnumName<Conservative>>(kConservativeNames), p);
+            if (!x) return;
+            if (*x != Conservative::none) p.add(path, std::string(kNoConservativeOutputs));
+            else o.simplify.conservative = *x;
+          },
+          [](const LodOptions& o) {
+            return o.simplify.conservative == Conservative::none
+                       ? Json()
+                       : Json(std::string(enum_name(std::span<const EnumName<Conservative>>(kConservativeNames),
+                                                    o.simplify.conservative)));
+          }};
+}
+
+Field<LodOptions> max_volume_growth_field() {
+  return {"max_volume_growth",
+          [](const Json& v, const std::string& path, LodOptions& o, Problems& p) {
+            const auto x = read_number(v, path, Bounds{}, p);
+            if (!x) return;
+            if (*x >= 0.0) p.add(path, "applies to conservative LODs only: " + std::string(kNoConservativeOutputs));
+            else o.simplify.max_volume_growth = *x;
+          },
+          [](const LodOptions& o) { return o.simplify.max_volume_growth < 0.0 ? Json() : Json(o.simplify.max_volume_growth); }};
+}
+
 // The simplifier options a config may set at every level (defaults, class options, LOD). One line each.
 const std::vector<Field<LodOptions>>& option_fields() {
   using B = FieldsOf<LodOptions>;
@@ -526,6 +570,8 @@ const std::vector<Field<LodOptions>>& option_fields() {
       B::choice("tiling", &SimplifyOptions::tiling, kTilingNames),
       // The same lower bound SimplifyOptions::validate() sets.
       B::count("tile_triangles", &SimplifyOptions::tile_triangles, 100, std::numeric_limits<std::uint32_t>::max()),
+      conservative_field(),
+      max_volume_growth_field(),
   };
   return fields;
 }

@@ -137,6 +137,42 @@ bool output_writable(const std::string& out) {
   }
 }
 
+// Signed volume of a mesh's faces (fan-triangulated), model units³: what a closed mesh encloses.
+double signed_volume(const Mesh& m) {
+  double v = 0.0;
+  for (std::size_t f = 0; f < m.face_count(); ++f) {
+    const std::uint32_t c = m.face_offsets[f];
+    const Vec3d p0 = to_double(m.positions[m.corner_vertex(c)]);
+    for (std::uint32_t k = 1; k + 1 < m.face_size(f); ++k) {
+      const Vec3d p1 = to_double(m.positions[m.corner_vertex(c + k)]);
+      const Vec3d p2 = to_double(m.positions[m.corner_vertex(c + k + 1)]);
+      v += dot(cross(p0, p1), p2);
+    }
+  }
+  return v / 6.0;
+}
+
+// Whether every edge of the mesh's faces is shared by exactly two faces (a volume means something).
+bool closed(const Mesh& m) {
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> edges;
+  edges.reserve(m.corner_count());
+  for (std::size_t f = 0; f < m.face_count(); ++f) {
+    const std::uint32_t c = m.face_offsets[f], n = m.face_size(f);
+    for (std::uint32_t k = 0; k < n; ++k) {
+      const std::uint32_t a = m.corner_vertex(c + k), b = m.corner_vertex(c + (k + 1) % n);
+      edges.emplace_back(std::min(a, b), std::max(a, b));
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  for (std::size_t i = 0; i < edges.size();) {
+    std::size_t j = i;
+    while (j < edges.size() && edges[j] == edges[i]) ++j;
+    if (j - i != 2) return false;
+    i = j;
+  }
+  return !edges.empty();
+}
+
 // SimplifyOptions::validate() names its fields; on the command line the user wrote options.
 std::string with_option_names(const std::string& problem) {
   static const std::pair<const char*, const char*> kNames[] = {
@@ -151,6 +187,8 @@ std::string with_option_names(const std::string& problem) {
       {"skin_weight_threshold", "--skin-threshold"},
       {"skin_max_distance", "--skin-max-distance"},
       {"tile_triangles", "--tile-triangles"},
+      {"conservative", "--conservative"},
+      {"max_volume_growth", "--max-volume-growth"},
   };
   for (const auto& [field, option] : kNames) {
     const std::string f(field);
@@ -242,6 +280,8 @@ void register_simplify(CLI::App& app) {
     double max_error_rel = -1;
     bool keep_attributes = false;
     std::string seams = "relax";
+    std::string conservative = "none";
+    double max_volume_growth_pct = -1;
     std::string tiling = "auto";
     std::string memory_limit;
     bool evaluate = false;
@@ -293,6 +333,15 @@ void register_simplify(CLI::App& app) {
   cmd->add_option("--skin-max-distance", a->opt.skin_max_distance,
                   "vertices of different dominant bones merge only below this L1 weight distance")
       ->default_val(a->opt.skin_max_distance);
+  cmd->add_option("--conservative", a->conservative,
+                  "none | bounding | occluder: a LOD that contains the input (collision) or lies inside it "
+                  "(occlusion culling); edge_collapse and multiple_choice engines; on open meshes the rim keeps "
+                  "its outline (docs/conservative.md)")
+      ->default_val(a->conservative)
+      ->check(CLI::IsMember({"none", "bounding", "occluder"}));
+  cmd->add_option("--max-volume-growth", a->max_volume_growth_pct,
+                  "PCT: with --conservative, stop before the LOD's volume grows (bounding) or shrinks (occluder) by "
+                  "more than this percentage of the input's");
   cmd->add_option("--tiling", a->tiling,
                   "auto | on | off: cut huge meshes into spatial tiles simplified in parallel with locked shared "
                   "borders, stitched and re-cut on a shifted grid (auto: from 1,000,000 triangles; triangle "
@@ -314,6 +363,10 @@ void register_simplify(CLI::App& app) {
     opt.seams = a->seams == "keep" ? SeamMode::keep : a->seams == "relax" ? SeamMode::relax : SeamMode::relax_materials;
     opt.max_error_rel = a->max_error_rel;
     opt.verify_budget = !a->no_verify;
+    opt.conservative = a->conservative == "bounding"   ? Conservative::bounding
+                       : a->conservative == "occluder" ? Conservative::occluder
+                                                       : Conservative::none;
+    opt.max_volume_growth = a->max_volume_growth_pct >= 0.0 ? a->max_volume_growth_pct / 100.0 : -1.0;
     if (a->engine == "edge_collapse") opt.engine = Engine::edge_collapse;
     else if (a->engine == "multiple_choice") opt.engine = Engine::multiple_choice;
     else if (a->engine == "polychord") opt.engine = Engine::polychord;
@@ -406,6 +459,12 @@ void register_simplify(CLI::App& app) {
           std::string floors;
           for (const std::string& f : r.floors) floors += (floors.empty() ? "" : ", ") + f;
           std::printf("  target not reached, held by: %s\n", floors.c_str());
+        }
+        if (opt.conservative != Conservative::none && closed(src)) {
+          const double v0 = signed_volume(src), v1 = signed_volume(r.mesh);
+          std::printf("  conservative %s: volume %+.3f%% of the input's (%zu collapse(s) refused by the rule)\n",
+                      conservative_name(opt.conservative), v0 != 0.0 ? 100.0 * (v1 / v0 - 1.0) : 0.0,
+                      r.vetoes[Veto::conservative]);
         }
         if (r.budget.verified) {
           // Measurements stop at the first distance over the budget: those print as "over".

@@ -191,6 +191,7 @@ CollapseMesh::CollapseMesh(const Mesh& m, const SimplifyOptions& options, Parall
 
   setup_keys();
   setup(parallel);
+  setup_conservative();
   setup_attributes(parallel);
   if (guard != nullptr && guard->bvh != nullptr) setup_guard(*guard, parallel);
 }
@@ -442,6 +443,7 @@ void CollapseMesh::setup(Parallel& parallel) {
   const double mean_area = alive_faces_ > 0 ? area3 / 3.0 / static_cast<double>(alive_faces_) : 0.0;
   weight_floor_ = std::max(1e-30, 1e-6 * mean_area);
   reg_weight_ = options_.regularization_weight * mean_area;
+  mean_area_ = mean_area;
   parallel.for_ranges(nv, 4096, [&](std::size_t b, std::size_t e) {
     for (std::size_t v = b; v < e; ++v) {
       if (size_[v] > 0 && kind_[v] != VertexKind::frozen) {
@@ -497,6 +499,17 @@ Evaluation CollapseMesh::evaluate(std::uint32_t u, std::uint32_t v, bool with_co
       // The surface quadric alone where it pins the point down (corners, creases with a third plane);
       // with the rubber band where it does not (flat and nearly flat patches, where the surface error
       // does not care and the band keeps the vertex inside the region it represents).
+      if (cons_side_ != 0.0) {
+        // Conservative: the constrained minimiser; where there is none, the midpoint, which check() refuses.
+        const std::optional<Vec3d> p = conservative_place(u, v, surface);
+        ev.position = p ? *p : (xu.pos + xv.pos) * 0.5;
+        if (policies_ != nullptr && policies_->placement) {
+          if (const std::optional<Vec3d> pp = policies_->placement(candidate(u, v, ev))) {
+            ev.position = output_rounded((*pp - origin_) * (1.0 / scale_));
+          }
+        }
+        break;
+      }
       const auto x = surface.minimizer(kWellConditioned);
       const Vec3d edge = xv.pos - xu.pos;
       const Vec3d off = x ? *x - (xu.pos + xv.pos) * 0.5 : Vec3d{};
@@ -542,6 +555,10 @@ Evaluation CollapseMesh::evaluate(std::uint32_t u, std::uint32_t v, bool with_co
       ev.cost += (surface.weight + weight_floor_) * (reach - ev.error);
       ev.error = reach;
     }
+  }
+  if (cons_volume_weight_ > 0.0) {  // bounding: the volume it adds (setup_conservative())
+    const double dv = std::abs(volume_change(u, v, ev.position)) / (scale_ * scale_ * scale_);
+    ev.cost += cons_volume_weight_ * std::sqrt(mean_area_) * dv;
   }
   if (skin_cost_scale_ > 0.0 && with_cost) ev.cost += skin_cost(u, v);
   if (policies_ != nullptr && policies_->cost && with_cost) ev.cost = std::max(0.0, policies_->cost(candidate(u, v, ev)));
@@ -780,6 +797,17 @@ Check CollapseMesh::check(std::uint32_t u, std::uint32_t v, const Vec3d& x, Scra
     return c;
   }
   c.boundary = a_boundary || b_boundary;
+
+  // Conservative modes: the side of every face plane around a and b (an infeasible edge was given a placement
+  // that fails here, and a neighbour's collapse may have moved a plane since the evaluation).
+  // On a rim, only a straight rim vertex may go, and only onto a rim neighbour that stays where it is.
+  if (cons_side_ != 0.0 &&
+      (!conservative_ok(a, b, x) ||
+       (!rim_.empty() && ((rim_[a] != 0 && (rim_[a] != kRimStraight || rim_[b] == 0 || !(vx_[b].pos == x))) ||
+                          (rim_[b] != 0 && !(vx_[b].pos == x)))))) {
+    c.veto = Veto::conservative;
+    return c;
+  }
 
   // Folds and degenerate faces: every face that survives around a or b, with its corner moved to x.
   for (std::uint32_t w : {a, b}) {

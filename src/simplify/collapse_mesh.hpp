@@ -24,6 +24,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <utility>
 #include <vector>
@@ -261,8 +262,15 @@ class CollapseMesh {
   VertexKind kind(std::uint32_t v) const { return kind_[v]; }
   EdgeRule rule(std::uint32_t u, std::uint32_t v) const {
     const EdgeRule r = kEdgeRule[static_cast<int>(kind_[u])][static_cast<int>(kind_[v])];
-    if (stage_ < SeamStage::uv) return r;
-    return movable_corner(u, v) ? EdgeRule::either : r;
+    if (stage_ >= SeamStage::uv && movable_corner(u, v)) return EdgeRule::either;
+    if (rim_.empty() || r != EdgeRule::optimal || (rim_[u] | rim_[v]) == 0) return r;
+    // Conservative modes on an open mesh: rim vertices never move; a straight one may go onto a rim neighbour.
+    if (rim_[u] != 0 && rim_[v] != 0) {
+      return rim_[v] == kRimStraight   ? EdgeRule::keep_u
+             : rim_[u] == kRimStraight ? EdgeRule::keep_v
+                                       : EdgeRule::forbidden;
+    }
+    return rim_[u] != 0 ? EdgeRule::keep_u : EdgeRule::keep_v;
   }
 
   // Seam relaxation (SeamStage). stage() is the stage in force; relax() moves to the next stage the options
@@ -300,6 +308,15 @@ class CollapseMesh {
   std::size_t list_room(const Check& c) const;
   void make_room(std::size_t entries);
   void commit(Check c, const Vec3d& x, Scratch& scratch);
+  // Conservative modes (SimplifyOptions::conservative): whether moving the survivor of (a, b) to x keeps it on
+  // the allowed side of the plane of every face around a and b, by at least a small slack (faces with a
+  // corner at x itself are unchanged or vanish and are skipped). Always true in mode none. Reads only.
+  bool conservative_ok(std::uint32_t a, std::uint32_t b, const Vec3d& x) const;
+  // The signed volume the collapse of (a, b) to x adds to the solid (model units³): the sum of the tetrahedra
+  // x makes with the faces around a and b.
+  double volume_change(std::uint32_t a, std::uint32_t b, const Vec3d& x) const;
+  // The input's signed volume (model units³), from the working faces at setup; 0 in mode none.
+  double input_volume() const { return input_volume_; }
   // Squared distances of the input points u and v track (far_) to the fan that collapsing (u, v) to x leaves.
   std::array<double, 2> far_distances(std::uint32_t u, std::uint32_t v, const Vec3d& x) const;
 
@@ -352,6 +369,11 @@ class CollapseMesh {
     return (ku == VertexKind::complex || kv == VertexKind::complex) && !pinned(ku) && !pinned(kv);
   }
   bool reattach_ok(std::uint32_t a, std::uint32_t b, const Check& c) const;
+  // Conservative modes: the quadric (with the rubber band) minimised over the allowed side of the face planes
+  // around u and v, rounded to the output's float grid; nullopt when no allowed point is found.
+  std::optional<Vec3d> conservative_place(std::uint32_t u, std::uint32_t v, const Quadric& surface) const;
+  // x as the output will write it (rounded to float in model units), in normalised coordinates.
+  Vec3d output_rounded(const Vec3d& x) const;
   std::uint32_t face_material(std::uint32_t f) const {
     const std::uint32_t sf = tri_source_[f];
     return sf < src_.face_material.size() ? src_.face_material[sf] : 0u;
@@ -391,6 +413,8 @@ class CollapseMesh {
   void setup_priority(std::vector<float>& priority) const;
   void setup(Parallel& parallel);
   void setup_attributes(Parallel& parallel);
+  void setup_conservative();
+  void setup_rim();
   // Guarded budget (budget_guard.cpp): each reference sample attached to its nearest working face at the start;
   // guard_ok() is check()'s last test, guard_reattach() moves the samples of the faces apply() changed.
   void setup_guard(const GuardReference& guard, Parallel& parallel);
@@ -411,6 +435,19 @@ class CollapseMesh {
   double cos_max_flip_ = 0.5;
   double weight_floor_ = 1e-30;  // keeps cost = E / W finite where all faces are degenerate
   double reg_weight_ = 0.0;      // rubber-band weight per anchor
+  double mean_area_ = 0.0;       // of the input's faces, normalised units
+  // Conservative modes: +1 bounding, -1 occluder, 0 none (the side of a face plane a new vertex must be on).
+  double cons_side_ = 0.0;
+  double cons_slack_ = 0.0;      // normalised distance a tested point must clear a plane by
+  double cons_margin_ = 0.0;     // the same for the placement solve, plus what float rounding may take away
+  double cons_band_ = 0.0;       // rubber-band weight per anchor in the placement solve (> 0: A positive definite)
+  double input_volume_ = 0.0;    // model units³
+  double cons_volume_weight_ = 0.0;  // bounding: the added volume's weight in the ordering key
+  // Conservative modes on a mesh with a boundary: per vertex, 0 (not on it), kRimStraight (its two boundary
+  // edges are collinear seen along the mesh's dominant axis: it may be removed onto a boundary neighbour) or
+  // kRimFixed (a corner of the rim: kept). Rim vertices never move. Empty otherwise.
+  static constexpr std::uint8_t kRimStraight = 1, kRimFixed = 2;
+  std::vector<std::uint8_t> rim_;
 
   // What a candidate evaluation reads about a vertex, in two adjacent cache lines.
   struct alignas(64) Vertex {

@@ -64,6 +64,7 @@ class GreedyEngine {
         stop_(stop_rule(options, triangles.triangle_count(), cm_.diagonal())),
         budget2_(normalised_budget_squared(stop_, cm_.scale())),
         parked_(cm_.vertex_count()),
+        volume_limit_(volume_limit(options, cm_)),
         mark_(cm_.vertex_count(), 0) {}
 
   SimplifyResult run(std::chrono::steady_clock::time_point start) {
@@ -103,7 +104,9 @@ class GreedyEngine {
     result_.timings.collapse_ms = elapsed_ms(t0);
     // An error budget stops most of its runs short of their (nominal) triangle target: no pass over the edges.
     if (!stop_.reached(cm_.alive_faces()) && !stopped_) {
-      result_.floors = over_budget_ ? std::vector<std::string>{"error_budget"} : diagnose_floors(cm_, budget2_);
+      result_.floors = volume_stop_  ? std::vector<std::string>{"volume_budget"}
+                       : over_budget_ ? std::vector<std::string>{"error_budget"}
+                                      : diagnose_floors(cm_, budget2_);
     }
     finish_result(cm_, max_error_, stop_, over_budget_, result_, stopped_);
     return std::move(result_);
@@ -118,7 +121,7 @@ class GreedyEngine {
   // Whether to stop before the next round: the target, a stop request (one poll a round: a round is a batch of
   // collapses), or the caller's stop policy.
   bool stop() {
-    if (stop_.reached(cm_.alive_faces())) return true;
+    if (stop_.reached(cm_.alive_faces()) || volume_stop_) return true;
     if (options_.stop.requested()) return stopped_ = true;
     return policies_.stop && policies_.stop({.triangles = cm_.alive_faces(),
                                              .collapses = result_.collapses,
@@ -298,6 +301,15 @@ class GreedyEngine {
         continue;
       }
       const Check& c = checks_[i];
+      if (volume_limit_ < std::numeric_limits<double>::infinity()) {
+        // The neighbourhoods of a batch are disjoint and none is applied yet: the change is exact.
+        const double dv = volume_sign(options_) * cm_.volume_change(c.victim, c.survivor, evals_[i].position);
+        if (volume_used_ + dv > volume_limit_) {  // stop before the budget is exceeded
+          volume_stop_ = over_budget_ = true;
+          break;
+        }
+        volume_used_ += dv;
+      }
       ring_first_.push_back(total);
       total += 2 * (cm_.star_size(c.victim) + cm_.star_size(c.survivor) - 2 * c.edge_face_count);
       cm_.reserve(checks_[i]);
@@ -410,6 +422,9 @@ class GreedyEngine {
   tbb::enumerable_thread_specific<Scratch> scratch_;
   bool over_budget_ = false;
   bool stopped_ = false;    // options_.stop was requested
+  const double volume_limit_;  // max_volume_growth in model units³ (+inf: none)
+  double volume_used_ = 0.0;   // volume gained (bounding) or lost (occluder) so far
+  bool volume_stop_ = false;   // the volume budget stopped the run
   double max_error_ = 0.0;  // largest committed Evaluation::error
 
   // Per-round buffers, kept across rounds to avoid reallocation.
@@ -476,6 +491,15 @@ std::vector<std::string> diagnose_floors(const CollapseMesh& cm, double budget2)
   return out;
 }
 
+
+double volume_limit(const SimplifyOptions& o, const CollapseMesh& cm) {
+  if (o.conservative == Conservative::none || !(o.max_volume_growth >= 0.0)) {
+    return std::numeric_limits<double>::infinity();
+  }
+  return o.max_volume_growth * std::abs(cm.input_volume());
+}
+
+double volume_sign(const SimplifyOptions& o) { return o.conservative == Conservative::occluder ? -1.0 : 1.0; }
 
 StopRule stop_rule(const SimplifyOptions& o, std::size_t input_triangles, double diagonal) {
   return StopRule::make(input_triangles,

@@ -57,6 +57,11 @@ BudgetCheck measure_budget(const Mesh& output, const SurfaceIndex& reference, do
 const SurfaceIndex& reference_index(const SimplifyOptions& options, const Mesh& reference,
                                     std::optional<SurfaceIndex>& local);
 
+// Conservative modes: the most volume the run may add (bounding) or remove (occluder), model units³; +inf
+// without a volume budget. volume_sign() turns CollapseMesh::volume_change() into that direction's amount.
+double volume_limit(const SimplifyOptions& options, const CollapseMesh& cm);
+double volume_sign(const SimplifyOptions& options);
+
 // The options' targets and budgets as the one stop rule of every engine; `diagonal` that of the mesh's
 // bounding box.
 StopRule stop_rule(const SimplifyOptions& options, std::size_t input_triangles, double diagonal);

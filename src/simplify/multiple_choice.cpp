@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 #include "engines.hpp"
@@ -99,7 +100,10 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
                                            .max_error = cm.model_error(max_error)});
   };
   bool stopped = false;  // options.stop was requested (polled once a round)
-  for (std::uint64_t round = 0; !stop.reached(cm.alive_faces()) && !policy_stop(); ++round) {
+  const double volume_limit = collapse::volume_limit(options, cm);
+  double volume_used = 0.0;
+  bool volume_stop = false;
+  for (std::uint64_t round = 0; !stop.reached(cm.alive_faces()) && !volume_stop && !policy_stop(); ++round) {
     if (options.stop.requested()) {
       stopped = true;
       break;
@@ -179,6 +183,15 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
         ++result.vetoes[Veto::seam];
         continue;
       }
+      if (volume_limit < std::numeric_limits<double>::infinity()) {
+        // The round's commits touch disjoint neighbourhoods: the change is that of the checked mesh.
+        const double dv = volume_sign(options) * cm.volume_change(w.check.victim, w.check.survivor, w.eval.position);
+        if (volume_used + dv > volume_limit) {  // stop before the budget is exceeded
+          volume_stop = over_budget = true;
+          break;
+        }
+        volume_used += dv;
+      }
       cm.for_each_closed_ring_vertex(w.u, w.v, [&](std::uint32_t x) { mark[x] = stamp; });
       cm.commit(w.check, w.eval.position, main_scratch);
       max_error = std::max(max_error, w.eval.error);
@@ -194,7 +207,7 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
       ++committed;
     }
     if (committed == 0) {
-      over_budget = round_over_budget;
+      over_budget = round_over_budget || volume_stop;
       if (++failed_rounds >= kMaxFailedRounds) {
         // Out of valid collapses (as far as sampling tells) and not stopped by the budget: the next seam stage.
         if (over_budget || !cm.relax()) break;
@@ -207,7 +220,9 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
   }
   result.timings.collapse_ms = elapsed_ms(t0);
   if (!stop.reached(cm.alive_faces())) {
-    result.floors = over_budget ? std::vector<std::string>{"error_budget"} : diagnose_floors(cm, budget2);
+    result.floors = volume_stop   ? std::vector<std::string>{"volume_budget"}
+                    : over_budget ? std::vector<std::string>{"error_budget"}
+                                  : diagnose_floors(cm, budget2);
   }
 
   finish_result(cm, max_error, stop, over_budget, result, stopped);

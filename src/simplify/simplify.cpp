@@ -56,6 +56,14 @@ std::vector<std::string> SimplifyOptions::validate() const {
   if (multiple_choice_k < 1 || multiple_choice_k > 256) {
     problems.push_back("multiple_choice_k must be in [1, 256], got " + std::to_string(multiple_choice_k));
   }
+  if (std::isnan(max_volume_growth)) problems.push_back("max_volume_growth is NaN (negative = unlimited)");
+  if (max_volume_growth >= 0.0 && conservative == Conservative::none) {
+    problems.push_back("max_volume_growth needs conservative = bounding or occluder");
+  }
+  if (conservative != Conservative::none && engine != Engine::edge_collapse && engine != Engine::multiple_choice) {
+    problems.push_back(std::string("conservative = ") + conservative_name(conservative) +
+                       " needs the edge_collapse or multiple_choice engine");
+  }
   if (tile_triangles < 100) {
     problems.push_back("tile_triangles must be at least 100, got " + std::to_string(tile_triangles));
   }
@@ -94,6 +102,15 @@ const char* stop_reason_name(StopReason r) {
     case StopReason::error_budget: return "error_budget";
     case StopReason::no_valid_collapse: return "no_valid_collapse";
     case StopReason::stopped: return "stopped";
+  }
+  return "unknown";
+}
+
+const char* conservative_name(Conservative c) {
+  switch (c) {
+    case Conservative::none: return "none";
+    case Conservative::bounding: return "bounding";
+    case Conservative::occluder: return "occluder";
   }
   return "unknown";
 }
@@ -143,6 +160,7 @@ const char* veto_name(Veto v) {
     case Veto::weld: return "weld";
     case Veto::filter: return "filter";
     case Veto::error_budget: return "error_budget";
+    case Veto::conservative: return "conservative";
   }
   return "unknown";
 }

@@ -105,6 +105,15 @@ enum class BorderMode {
   lock,      // border vertices never move and are never removed
 };
 
+// Conservative LODs (docs/conservative.md): every collapse puts its new vertex on one side of the planes of all
+// the faces around the collapsed edge, so the LOD nests with the input.
+enum class Conservative {
+  none,      // no nesting constraint (default)
+  bounding,  // the LOD contains the input (collision hulls): new vertices in front of or on the old faces
+  occluder,  // the LOD lies inside the input (occluders): new vertices behind or on the old faces
+};
+const char* conservative_name(Conservative c);
+
 struct SimplifyOptions {
   // Target triangle count: target_triangles when it is non-zero, else round(target_ratio × input triangles);
   // ratio in (0, 1]. The error budgets below may stop earlier (stop_reason says so).
@@ -128,6 +137,13 @@ struct SimplifyOptions {
   // relative to the queue, see edge_collapse.cpp), 1 = strictly sequential greedy. Output depends on this
   // value but never on `threads`.
   std::size_t max_batch = 0;
+  // Nesting with the input (Conservative). Triangle engines only (edge_collapse, multiple_choice). On open
+  // meshes rim vertices never move; one whose two rim edges are collinear seen along the mesh's dominant axis
+  // may be removed onto a rim neighbour (a terrain tile's straight sides thin out, its outline stays).
+  Conservative conservative = Conservative::none;
+  // Conservative modes: the run stops before the LOD's volume differs from the input's by more than this
+  // fraction of the input's volume (bounding: growth; occluder: loss). Negative = unlimited.
+  double max_volume_growth = -1.0;
   // Read by simplify_maybe_tiled() only (tiling/tiling.hpp); simplify() runs untiled whatever they say.
   TilingMode tiling = TilingMode::automatic;
   std::size_t tile_triangles = 200'000;  // triangles per tile on the tiled path, at least 100
@@ -197,8 +213,9 @@ enum class Veto : std::uint8_t {
   weld,             // polychord engine: the weld of a run refused it (topology, fold, seam or skin)
   filter,           // a caller's filter policy refused it (CollapsePolicies::filter)
   error_budget,     // its error exceeds the error budget (not a refusal of the topology: counted apart)
+  conservative,     // conservative modes: the new vertex would cross the plane of a face around the edge
 };
-inline constexpr int kVetoKinds = 14;
+inline constexpr int kVetoKinds = 15;
 const char* veto_name(Veto v);
 
 // How many candidates each rule refused.

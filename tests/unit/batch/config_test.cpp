@@ -22,7 +22,7 @@ constexpr const char* kOptionKeys =
     "engine, border, border_weight, regularization_weight, max_flip_angle_deg, seed, multiple_choice_k, max_batch, "
     "attribute_weights, seams, permissive, priority_channel, attribute_placement, priority_lock, "
     "skin_weight_threshold, "
-    "skin_max_distance, tiling, tile_triangles";
+    "skin_max_distance, tiling, tile_triangles, conservative, max_volume_growth";
 // `defaults` and class options also take the per-asset options.
 const std::string kClassOptionKeys = std::string(kOptionKeys) + ", symmetry_plane";
 
@@ -686,6 +686,31 @@ TEST(BatchConfig, SymmetryPlanePerClass) {
   EXPECT_EQ(e["classes"][0]["options"]["symmetry_plane"], "x");
   EXPECT_FALSE(e["classes"][0]["lods"][0].contains("symmetry_plane"));
   EXPECT_EQ(parse_config(e).classes[0].options.pending.symmetry_plane, symmetry::PlaneMode::x);
+}
+
+// Conservative LODs are separate outputs the runner does not write yet: any level that asks for one is refused
+// with the reason; "none" and a negative volume budget are accepted, and the effective config leaves both out.
+TEST(BatchConfigErrors, ConservativeRefused) {
+  const std::string why =
+      "collision and occluder LODs are separate outputs, not render levels of a LOD chain; the batch runner does "
+      "not write them yet (use `lodforge simplify --conservative bounding|occluder`, docs/conservative.md)";
+  EXPECT_EQ(error_with("/defaults/conservative", "bounding"), expected("defaults.conservative: " + why));
+  EXPECT_EQ(error_with("/classes/0/options/conservative", "occluder"),
+            expected("classes[0].options.conservative: " + why));
+  EXPECT_EQ(error_with("/classes/0/lods/0/conservative", "bounding"),
+            expected("classes[0].lods[0].conservative: " + why));
+  EXPECT_EQ(error_with("/classes/0/lods/0/max_volume_growth", 0.1),
+            expected("classes[0].lods[0].max_volume_growth: applies to conservative LODs only: " + why));
+  EXPECT_EQ(error_with("/defaults/conservative", "hull"),
+            expected("defaults.conservative: must be one of \"none\", \"bounding\", \"occluder\", got string "
+                     "\"hull\""));
+  Json doc = minimal();
+  doc["defaults"]["conservative"] = "none";
+  doc["classes"][0]["lods"][0]["max_volume_growth"] = -1;
+  const Json e = effective_config_json(parse_config(doc));
+  EXPECT_FALSE(e["defaults"].contains("conservative"));
+  EXPECT_FALSE(e["defaults"].contains("max_volume_growth"));
+  EXPECT_EQ(e, effective_config_json(parse_config(minimal())));
 }
 
 TEST(BatchConfigErrors, Tiling) {
