@@ -473,6 +473,21 @@ void CollapseMesh::setup(Parallel& parallel) {
 
 // ---- CollapseMesh: evaluation and checks ----------------------------------------------------------------------
 
+Quadric CollapseMesh::with_rubber_band(const Quadric& surface, std::uint32_t u, std::uint32_t v, double weight) const {
+  const Vertex& xu = vx_[u];
+  const Vertex& xv = vx_[v];
+  const double w = weight * (static_cast<double>(xu.anchors) + static_cast<double>(xv.anchors));
+  const Vec3f sum = xu.anchor_sum + xv.anchor_sum;
+  Quadric q = surface;
+  q.a00 += w;
+  q.a11 += w;
+  q.a22 += w;
+  q.b0 -= weight * static_cast<double>(sum[0]);
+  q.b1 -= weight * static_cast<double>(sum[1]);
+  q.b2 -= weight * static_cast<double>(sum[2]);
+  return q;
+}
+
 Evaluation CollapseMesh::evaluate(std::uint32_t u, std::uint32_t v, bool with_cost) const {
   const Vertex& xu = vx_[u];
   const Vertex& xv = vx_[v];
@@ -516,16 +531,7 @@ Evaluation CollapseMesh::evaluate(std::uint32_t u, std::uint32_t v, bool with_co
       if (x && dot(off, off) <= kMaxReachEdgeLengths * kMaxReachEdgeLengths * dot(edge, edge)) {
         ev.position = *x;
       } else {
-        Quadric solve = surface;
-        const double w = reg_weight_ * (static_cast<double>(xu.anchors) + static_cast<double>(xv.anchors));
-        const Vec3f sum = xu.anchor_sum + xv.anchor_sum;
-        solve.a00 += w;
-        solve.a11 += w;
-        solve.a22 += w;
-        solve.b0 -= reg_weight_ * static_cast<double>(sum[0]);
-        solve.b1 -= reg_weight_ * static_cast<double>(sum[1]);
-        solve.b2 -= reg_weight_ * static_cast<double>(sum[2]);
-        ev.position = place_on_edge(solve, xu.pos, xv.pos).position;
+        ev.position = place_on_edge(with_rubber_band(surface, u, v, reg_weight_), xu.pos, xv.pos).position;
       }
       if (policies_ != nullptr && policies_->placement) {
         if (const std::optional<Vec3d> p = policies_->placement(candidate(u, v, ev))) {

@@ -372,6 +372,8 @@ class CollapseMesh {
   // Conservative modes: the quadric (with the rubber band) minimised over the allowed side of the face planes
   // around u and v, rounded to the output's float grid; nullopt when no allowed point is found.
   std::optional<Vec3d> conservative_place(std::uint32_t u, std::uint32_t v, const Quadric& surface) const;
+  // `surface` plus the rubber band of edge (u, v): `weight` per anchor towards the anchors' positions.
+  Quadric with_rubber_band(const Quadric& surface, std::uint32_t u, std::uint32_t v, double weight) const;
   // x as the output will write it (rounded to float in model units), in normalised coordinates.
   Vec3d output_rounded(const Vec3d& x) const;
   std::uint32_t face_material(std::uint32_t f) const {

@@ -144,17 +144,7 @@ std::optional<Vec3d> CollapseMesh::conservative_place(std::uint32_t u, std::uint
   const HalfSpace* planes = k <= cap ? small_planes.data() : big_planes.data();
 
   // E(x) = xᵀAx + 2bᵀx + c: the surface quadric and the rubber band.
-  const Vertex& xu = vx_[u];
-  const Vertex& xv = vx_[v];
-  const double w = cons_band_ * (static_cast<double>(xu.anchors) + static_cast<double>(xv.anchors));
-  const Vec3f sum = xu.anchor_sum + xv.anchor_sum;
-  Quadric q = surface;
-  q.a00 += w;
-  q.a11 += w;
-  q.a22 += w;
-  q.b0 -= cons_band_ * static_cast<double>(sum[0]);
-  q.b1 -= cons_band_ * static_cast<double>(sum[1]);
-  q.b2 -= cons_band_ * static_cast<double>(sum[2]);
+  const Quadric q = with_rubber_band(surface, u, v, cons_band_);
   const double A[3][3] = {{q.a00, q.a01, q.a02}, {q.a01, q.a11, q.a12}, {q.a02, q.a12, q.a22}};
   const double bvec[3] = {q.b0, q.b1, q.b2};
   // Energy for ranking feasible points (the constant c does not matter).
@@ -273,7 +263,9 @@ std::optional<Vec3d> CollapseMesh::conservative_place(std::uint32_t u, std::uint
   // Cheap fallbacks: the endpoints (exact already) and the midpoint, the one with the least energy.
   std::optional<Vec3d> fallback;
   double fallback_e = std::numeric_limits<double>::infinity();
-  for (const Vec3d& p : {xu.pos, xv.pos, output_rounded((xu.pos + xv.pos) * 0.5)}) {
+  const Vec3d& pu = vx_[u].pos;
+  const Vec3d& pv = vx_[v].pos;
+  for (const Vec3d& p : {pu, pv, output_rounded((pu + pv) * 0.5)}) {
     const double e = energy(p);
     if (e < fallback_e && conservative_ok(u, v, p)) {
       fallback_e = e;
