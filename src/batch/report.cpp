@@ -293,6 +293,11 @@ Json merge_reports(const std::vector<Json>& reports) {
   merged["config_file"] = first["config_file"];
   merged["effective_config"] = first["effective_config"];
   merged["jobs"] = first["jobs"];
+  // The folders, where every shard names the same (shards on different machines may not): else unknown.
+  for (const char* key : {"input_dir", "output_dir"}) {
+    const auto same = [&](const Json& r) { return r.contains(key) && first.contains(key) && r[key] == first[key]; };
+    merged[key] = std::all_of(reports.begin(), reports.end(), same) ? first[key] : Json(nullptr);
+  }
   merged["shard"] = nullptr;
   Json list = Json::array();
   for (Json& a : assets) list.push_back(std::move(a));

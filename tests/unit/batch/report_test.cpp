@@ -125,6 +125,22 @@ TEST(Report, MergeSortsAssetsAndRecomputesTheSummary) {
   EXPECT_EQ(merged["summary"]["seconds"], 1.5) << "the slowest shard";
 }
 
+TEST(Report, MergeKeepsTheFoldersTheShardsShare) {
+  Json a = report({asset("a")}, "0/2"), b = report({asset("b")}, "1/2");
+  for (Json* r : {&a, &b}) {
+    (*r)["input_dir"] = "/library";
+    (*r)["output_dir"] = "/out";
+  }
+  Json merged = merge_reports({a, b});
+  EXPECT_EQ(merged["input_dir"], "/library");
+  EXPECT_EQ(merged["output_dir"], "/out");
+  EXPECT_TRUE(check_report(merged).empty());
+  b["output_dir"] = "/other-machine/out";
+  merged = merge_reports({a, b});
+  EXPECT_EQ(merged["input_dir"], "/library");
+  EXPECT_TRUE(merged["output_dir"].is_null()) << "the shards disagree";
+}
+
 TEST(Report, MergeRefusesMismatchedOrOverlappingReports) {
   const Json a = report({asset("a")}, "0/2");
   Json other_config = report({asset("b")}, "1/2");
