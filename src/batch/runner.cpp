@@ -1276,23 +1276,34 @@ std::vector<std::string> stale_outputs(const fs::path& output_dir, const fs::pat
       for (std::string& o : cache.listed_outputs(paths[i])) produced.insert(std::move(o));
     }
   }
+  const std::set<std::string> library(paths.begin(), paths.end());
+  const std::string pictures = std::string(kPictureFolder) + "/";
   std::vector<std::string> stale;
   std::error_code ec;
   for (auto it = fs::recursive_directory_iterator(output_dir, ec); !ec && it != fs::recursive_directory_iterator();
        it.increment(ec)) {
     std::error_code type_ec;
     if (it->is_directory(type_ec)) {
-      // A library inside the output folder holds the inputs, never outputs.
-      // Nor do the cache and the report's pictures (the files of the assets' last good runs).
-      if (it->path().filename() == kCacheFolder || (it.depth() == 0 && it->path().filename() == kPictureFolder) ||
-          fs::equivalent(it->path(), input_dir, type_ec)) {
+      // A library inside the output folder holds the inputs, never outputs. Nor does the cache.
+      if (it->path().filename() == kCacheFolder || fs::equivalent(it->path(), input_dir, type_ec)) {
         it.disable_recursion_pending();
       }
       continue;
     }
     if (!it->is_regular_file(type_ec) || !output_like(it->path())) continue;
     const std::string rel = it->path().lexically_relative(output_dir).generic_string();
-    if (!produced.count(rel)) stale.push_back(rel);
+    if (produced.count(rel)) continue;
+    if (rel.starts_with(pictures)) {
+      // The report's pictures (report_files/<asset>/lodK.png) stay while their asset is in the library, whatever
+      // its last run did: they are its last good run's. Other files there are never judged.
+      const fs::path picture(rel.substr(pictures.size()));
+      const std::string name = picture.filename().string();
+      const bool lod_picture = name.size() > 7 && name.starts_with("lod") && name.ends_with(".png") &&
+                               std::all_of(name.begin() + 3, name.end() - 4, [](char c) { return c >= '0' && c <= '9'; });
+      if (lod_picture && !library.count(picture.parent_path().generic_string())) stale.push_back(rel);
+      continue;
+    }
+    stale.push_back(rel);
   }
   std::sort(stale.begin(), stale.end());
   return stale;

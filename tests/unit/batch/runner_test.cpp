@@ -785,6 +785,7 @@ TEST(BatchPrune, StaleOutputsAreListedAndRemovedOnlyWithPrune) {
   const RunResult listed = run(lib.root, out, 2, props_levels(2));
   std::vector<std::string> expected;
   for (int k = 1; k <= 3; ++k) expected.push_back(lod_output(removed, k));
+  for (std::size_t k = 0; k <= 3; ++k) expected.push_back(picture_file_name(removed, k));  // where drawn
   for (const std::string& p : lib.files) {
     if (p.rfind("props/", 0) == 0 && p != removed) expected.push_back(lod_output(p, 3));
   }
@@ -809,6 +810,38 @@ TEST(BatchPrune, StaleOutputsAreListedAndRemovedOnlyWithPrune) {
   const std::vector<std::string> entries = cache.entry_paths();
   EXPECT_EQ(std::count(entries.begin(), entries.end(), removed), 0) << "the removed asset's cache entry goes too";
   EXPECT_TRUE(run_batch(props_levels(2), prune).stale_outputs.empty());
+}
+
+// The report's pictures of an asset that left the library are stale too; the others' stay.
+TEST(BatchPrune, PicturesOfRemovedAssetsAreStale) {
+  const fs::path dir = testing::temp_dir("batch_prune_pictures");
+  const testlib::Library lib = testlib::write_library(dir / "lib", 6);
+  const fs::path out = dir / "out";
+  BatchConfig cfg = config();
+  cfg.report.pictures = ReportPictures::on;
+  ASSERT_TRUE(run(lib.root, out, 2, cfg).stale_outputs.empty());
+  const std::string removed = lib.files.front(), kept = lib.files.back();
+  ASSERT_TRUE(fs::exists(out / picture_file_name(removed, 1))) << "pictures are on";
+  ASSERT_TRUE(fs::exists(out / picture_file_name(kept, 1)));
+  std::ofstream(out / kPictureFolder / "notes.txt") << "not a picture: never judged";
+  fs::remove(lib.root / removed);
+  const RunResult listed = run(lib.root, out, 2, cfg);
+  std::vector<std::string> pictures;
+  for (const std::string& f : listed.stale_outputs) {
+    if (f.starts_with(std::string(kPictureFolder) + "/")) pictures.push_back(f);
+  }
+  ASSERT_FALSE(pictures.empty());
+  for (const std::string& f : pictures) {
+    EXPECT_EQ(f.rfind(std::string(kPictureFolder) + "/" + removed + "/lod", 0), 0u) << f;
+    EXPECT_TRUE(fs::exists(out / f)) << f << " removed without --prune";
+  }
+  RunOptions prune{.input_dir = lib.root, .output_dir = out, .jobs = 2};
+  prune.prune = true;
+  run_batch(cfg, prune);
+  for (const std::string& f : pictures) EXPECT_FALSE(fs::exists(out / f)) << f;
+  EXPECT_FALSE(fs::exists(out / kPictureFolder / removed)) << "its emptied folder goes too";
+  EXPECT_TRUE(fs::exists(out / picture_file_name(kept, 1)));
+  EXPECT_TRUE(fs::exists(out / kPictureFolder / "notes.txt"));
 }
 
 TEST(BatchPrune, ALibraryInsideTheOutputFolderIsNeverStale) {
