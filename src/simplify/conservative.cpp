@@ -14,6 +14,8 @@
 #include <limits>
 #include <optional>
 
+#include <Eigen/Dense>
+
 #include "collapse_mesh.hpp"
 
 namespace lodforge::collapse {
@@ -24,41 +26,16 @@ constexpr double kVolumeCostWeight = 100.0;
 // Planes whose unit normals and offsets agree this closely count as one (flat regions repeat their plane).
 constexpr double kSamePlane = 1e-12;
 
+// The KKT systems of the placement: three coordinates and at most three active planes (no heap).
+using KktMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
+using KktVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1>;
+// A KKT pivot this small against the largest counts as zero: the active planes are (nearly) dependent.
+constexpr double kSingularPivot = 1e-14;
+
 struct HalfSpace {
   Vec3d g;   // unit normal pointing to the allowed side
   double h;  // allowed: dot(g, x) >= h
 };
-
-// Solves the n×n system M y = r in place (Gaussian elimination, partial pivoting); false when singular.
-template <int N>
-bool solve_dense(std::array<std::array<double, N>, N>& m, std::array<double, N>& r, int n) {
-  double scale = 0.0;
-  for (int i = 0; i < n; ++i) {
-    for (int j = 0; j < n; ++j) scale = std::max(scale, std::abs(m[i][j]));
-  }
-  if (!(scale > 0.0)) return false;
-  for (int c = 0; c < n; ++c) {
-    int p = c;
-    for (int i = c + 1; i < n; ++i) {
-      if (std::abs(m[i][c]) > std::abs(m[p][c])) p = i;
-    }
-    if (!(std::abs(m[p][c]) > 1e-14 * scale)) return false;
-    std::swap(m[p], m[c]);
-    std::swap(r[p], r[c]);
-    for (int i = c + 1; i < n; ++i) {
-      const double f = m[i][c] / m[c][c];
-      for (int j = c; j < n; ++j) m[i][j] -= f * m[c][j];
-      r[i] -= f * r[c];
-    }
-  }
-  for (int i = n - 1; i >= 0; --i) {
-    double v = r[i];
-    for (int j = i + 1; j < n; ++j) v -= m[i][j] * r[j];
-    r[i] = v / m[i][i];
-    if (!std::isfinite(r[i])) return false;
-  }
-  return true;
-}
 
 }  // namespace
 
@@ -163,23 +140,27 @@ std::optional<Vec3d> CollapseMesh::conservative_place(std::uint32_t u, std::uint
   // way, until none is violated; the KKT systems of at most three active planes are solved afresh each step.
   // A violated plane that no step can satisfy proves the polyhedron empty.
   auto kkt = [&](const std::size_t* act, int m, const Vec3d& rhs_x, const double* rhs_c, Vec3d& x, double* mu) {
-    std::array<std::array<double, 6>, 6> M{};
-    std::array<double, 6> r{};
+    KktMatrix M = KktMatrix::Zero(3 + m, 3 + m);
+    KktVector r(3 + m);
     for (int i = 0; i < 3; ++i) {
-      for (int j = 0; j < 3; ++j) M[i][j] = A[i][j];
-      r[i] = rhs_x[i];
+      for (int j = 0; j < 3; ++j) M(i, j) = A[i][j];
+      r(i) = rhs_x[i];
     }
     for (int c = 0; c < m; ++c) {
       const HalfSpace& p = planes[act[c]];
       for (int i = 0; i < 3; ++i) {
-        M[i][3 + c] = -p.g[i];
-        M[3 + c][i] = p.g[i];
+        M(i, 3 + c) = -p.g[i];
+        M(3 + c, i) = p.g[i];
       }
-      r[3 + c] = rhs_c[c];
+      r(3 + c) = rhs_c[c];
     }
-    if (!solve_dense<6>(M, r, 3 + m)) return false;
-    x = Vec3d{{r[0], r[1], r[2]}};
-    for (int c = 0; c < m; ++c) mu[c] = r[3 + c];
+    Eigen::FullPivLU<KktMatrix> lu(M);
+    lu.setThreshold(kSingularPivot);
+    if (!lu.isInvertible()) return false;
+    const KktVector y = lu.solve(r);
+    if (!y.allFinite()) return false;
+    x = Vec3d{{y(0), y(1), y(2)}};
+    for (int c = 0; c < m; ++c) mu[c] = y(3 + c);
     return true;
   };
   std::optional<Vec3d> best;
