@@ -15,6 +15,7 @@
 
 #include "lodforge/batch/runner.hpp"
 #include "lodforge/core/topology.hpp"
+#include "lodforge/core/volume.hpp"
 #include "lodforge/core/validate.hpp"
 #include "lodforge/eval/attribute_eval.hpp"
 #include "lodforge/eval/eval.hpp"
@@ -135,21 +136,6 @@ bool output_writable(const std::string& out) {
     set_exit_code(2);
     return false;
   }
-}
-
-// Signed volume of a mesh's faces (fan-triangulated), model units³: what a closed mesh encloses.
-double signed_volume(const Mesh& m) {
-  double v = 0.0;
-  for (std::size_t f = 0; f < m.face_count(); ++f) {
-    const std::uint32_t c = m.face_offsets[f];
-    const Vec3d p0 = to_double(m.positions[m.corner_vertex(c)]);
-    for (std::uint32_t k = 1; k + 1 < m.face_size(f); ++k) {
-      const Vec3d p1 = to_double(m.positions[m.corner_vertex(c + k)]);
-      const Vec3d p2 = to_double(m.positions[m.corner_vertex(c + k + 1)]);
-      v += dot(cross(p0, p1), p2);
-    }
-  }
-  return v / 6.0;
 }
 
 // Whether every edge of the mesh's faces is shared by exactly two faces (a volume means something).

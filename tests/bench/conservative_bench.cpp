@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "lodforge/core/mesh.hpp"
+#include "lodforge/core/volume.hpp"
 #include "lodforge/eval/eval.hpp"
 #include "lodforge/io/asset.hpp"
 #include "lodforge/simplify/simplify.hpp"
@@ -43,17 +44,6 @@ const char* const kClosedScans[] = {
 };
 
 Vec3d pos(const Mesh& m, std::size_t corner) { return lodforge::to_double(m.positions[m.corner_vertex(corner)]); }
-
-double volume(const Mesh& m) {
-  double v = 0.0;
-  for (std::size_t f = 0; f < m.face_count(); ++f) {
-    const std::uint32_t c = m.face_offsets[f];
-    for (std::uint32_t k = 1; k + 1 < m.face_size(f); ++k) {
-      v += lodforge::dot(lodforge::cross(pos(m, c), pos(m, c + k)), pos(m, c + k + 1));
-    }
-  }
-  return v / 6.0;
-}
 
 // `m` with every vertex moved by `d` along its area-weighted normal.
 Mesh offset(Mesh m, double d) {
@@ -157,17 +147,17 @@ int main(int argc, char** argv) {
   double log_ratio = 0.0, silhouette_sum = 0.0;
   for (const std::string& file : files) {
     Mesh src = lodforge::io::load_asset(file).meshes.at(0);
-    const double v0 = volume(src);
+    const double v0 = lodforge::signed_volume(src);
     auto t = Clock::now();
     const lodforge::SimplifyResult plain = lodforge::simplify(src, {.target_ratio = ratio});
     const double plain_ms = ms_since(t);
     const lodforge::EvalResult e = lodforge::evaluate(src, plain.mesh, lodforge::EvalOptions{});
-    const double naive = volume(offset(plain.mesh, e.a_to_b.max)) / v0 - 1.0;
+    const double naive = lodforge::signed_volume(offset(plain.mesh, e.a_to_b.max)) / v0 - 1.0;
     t = Clock::now();
     const lodforge::SimplifyResult bound =
         lodforge::simplify(src, {.target_ratio = ratio, .conservative = lodforge::Conservative::bounding});
     const double bound_ms = ms_since(t);
-    const double overhead = volume(bound.mesh) / v0 - 1.0;
+    const double overhead = lodforge::signed_volume(bound.mesh) / v0 - 1.0;
     t = Clock::now();
     const lodforge::SimplifyResult occl =
         lodforge::simplify(src, {.target_ratio = ratio, .conservative = lodforge::Conservative::occluder});
