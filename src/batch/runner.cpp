@@ -272,7 +272,7 @@ MeshChain build_chain(const Mesh& source, const AssetClass& cls, std::size_t ass
     options.threads = threads_for(from.triangle_count(), jobs);
     if (chained) {
       options.budget_reference = &source;
-      if (options.verify_budget && (options.max_error_abs >= 0.0 || options.max_error_rel >= 0.0)) {
+      if (options.verifies_budget()) {
         if (!source_index) source_index.emplace(source);
         options.budget_reference_index = &*source_index;
       }

@@ -170,8 +170,6 @@ namespace {
 // The polychord back-off stops when the undecided range of targets is this fraction of the reduction.
 constexpr std::size_t kPolychordResolutionDivisor = 32;
 
-bool verifies_budget(const SimplifyOptions& o) { return o.verify_budget && (o.max_error_abs >= 0.0 || o.max_error_rel >= 0.0); }
-
 // The result of a quad engine run taken as it is (moved from `q`; stop reason target_reached).
 SimplifyResult quad_engine_result(quad::PolychordResult&& q, const SimplifyOptions& options) {
   SimplifyResult r;
@@ -349,7 +347,7 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options, c
     r = quad_engine_result(std::move(q), options);
   }
   const double diagonal = compute_bounds(mesh).diagonal();
-  if (verifies_budget(options) && r.stop_reason != StopReason::stopped) {
+  if (options.verifies_budget() && r.stop_reason != StopReason::stopped) {
     const Mesh& reference = options.budget_reference != nullptr ? *options.budget_reference : mesh;
     std::optional<SurfaceIndex> local_index;
     const SurfaceIndex& index = collapse::reference_index(options, reference, local_index);
@@ -414,7 +412,7 @@ SimplifyResult simplify(const Mesh& mesh, const SimplifyOptions& options, const 
   // The multiple-choice engine is not guarded: it samples a few candidates a step, and where the guard refuses
   // most of them its rounds fail and it stops far above what the back-off along its log reaches.
   const bool guarded = options.engine != Engine::multiple_choice;
-  SimplifyResult r = verifies_budget(options)
+  SimplifyResult r = options.verifies_budget()
                          ? collapse::run_within_budget(engine, tris, options, policies, true, guarded)
                          : engine(tris, options, policies, nullptr, nullptr);
   r.triangles_before = mesh.triangle_count();

@@ -247,7 +247,7 @@ bool may_tile(const SimplifyOptions& options) {
   if (options.engine != Engine::edge_collapse && options.engine != Engine::multiple_choice) return false;
   // A volume budget is a fraction of the whole mesh's volume: a tile (an open piece) has none of its own.
   if (options.conservative != Conservative::none && options.max_volume_growth >= 0.0) return false;
-  return !(options.verify_budget && (options.max_error_abs >= 0.0 || options.max_error_rel >= 0.0));
+  return !options.verifies_budget();
 }
 
 }  // namespace

@@ -178,6 +178,8 @@ struct SimplifyOptions {
   // budget_reference's surface index (eval/distance_bound.hpp), where the caller builds it once for several
   // simplify() calls against the same reference (the LODs of a chain); null: each call builds its own.
   const SurfaceIndex* budget_reference_index = nullptr;
+  // Whether simplify() holds an error budget by measurement (verify_budget, and a budget set).
+  bool verifies_budget() const { return verify_budget && (max_error_abs >= 0.0 || max_error_rel >= 0.0); }
 
   // A deadline or cancel flag (core/stop.hpp) polled between rounds of collapses (every engine) and between
   // the budget's measurements; once requested, simplify() returns the mesh as far as it got with stop_reason
