@@ -570,6 +570,7 @@ const std::vector<Field<LodOptions>>& option_fields() {
       B::choice("tiling", &SimplifyOptions::tiling, kTilingNames),
       // The same lower bound SimplifyOptions::validate() sets.
       B::count("tile_triangles", &SimplifyOptions::tile_triangles, 100, std::numeric_limits<std::uint32_t>::max()),
+      B::number("symmetry_weight", &SimplifyOptions::symmetry_weight, at_least(0)),
       conservative_field(),
       max_volume_growth_field(),
   };
@@ -1257,6 +1258,7 @@ std::string unmatched_reason(const BatchConfig& config, std::string_view relativ
 
 SimplifyOptions simplify_options_for(const LodSpec& lod, const LodInput& input) {
   SimplifyOptions o = lod.options.simplify;
+  o.symmetry_plane = lod.options.pending.symmetry_plane;
   o.target_ratio = 1.0;
   o.target_triangles = 0;
   o.max_error_abs = -1.0;

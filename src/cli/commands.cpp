@@ -175,6 +175,7 @@ std::string with_option_names(const std::string& problem) {
       {"tile_triangles", "--tile-triangles"},
       {"conservative", "--conservative"},
       {"max_volume_growth", "--max-volume-growth"},
+      {"symmetry_weight", "--symmetry-weight"},
   };
   for (const auto& [field, option] : kNames) {
     const std::string f(field);
@@ -267,6 +268,7 @@ void register_simplify(CLI::App& app) {
     bool keep_attributes = false;
     std::string seams = "relax";
     std::string conservative = "none";
+    std::string symmetry_plane = "auto";
     double max_volume_growth_pct = -1;
     std::string tiling = "auto";
     std::string memory_limit;
@@ -328,6 +330,15 @@ void register_simplify(CLI::App& app) {
   cmd->add_option("--max-volume-growth", a->max_volume_growth_pct,
                   "PCT: with --conservative, stop before the LOD's volume grows (bounding) or shrinks (occluder) by "
                   "more than this percentage of the input's");
+  cmd->add_option("--symmetry-weight", a->opt.symmetry_weight,
+                  "favour mirror pairs: an edge and its mirror image collapse together, and a collapse that breaks "
+                  "the symmetry costs 1 + this times its error (0 = off; edge_collapse engine and the polychord "
+                  "engine's triangle phase; multiple_choice, cluster and tiled runs ignore it; docs/symmetry.md)")
+      ->default_val(a->opt.symmetry_weight);
+  cmd->add_option("--symmetry-plane", a->symmetry_plane,
+                  "with --symmetry-weight: the mirror plane to look for: auto, x, y, z (normal along that axis), none")
+      ->default_val(a->symmetry_plane)
+      ->check(CLI::IsMember({"auto", "x", "y", "z", "none"}));
   cmd->add_option("--tiling", a->tiling,
                   "auto | on | off: cut huge meshes into spatial tiles simplified in parallel with locked shared "
                   "borders, stitched and re-cut on a shifted grid (auto: from 1,000,000 triangles; triangle "
@@ -353,6 +364,7 @@ void register_simplify(CLI::App& app) {
                        : a->conservative == "occluder" ? Conservative::occluder
                                                        : Conservative::none;
     opt.max_volume_growth = a->max_volume_growth_pct >= 0.0 ? a->max_volume_growth_pct / 100.0 : -1.0;
+    opt.symmetry_plane = *symmetry::parse_plane_mode(a->symmetry_plane);
     if (a->engine == "edge_collapse") opt.engine = Engine::edge_collapse;
     else if (a->engine == "multiple_choice") opt.engine = Engine::multiple_choice;
     else if (a->engine == "polychord") opt.engine = Engine::polychord;
@@ -439,6 +451,8 @@ void register_simplify(CLI::App& app) {
                     r.timings.setup_ms + r.timings.initial_costs_ms + r.timings.collapse_ms + r.timings.output_ms);
         if (r.tiling_passes > 0)
           std::printf("  tiled: %zu pass(es), %zu tile run(s)\n", r.tiling_passes, r.tile_runs);
+        if (opt.symmetry_weight > 0.0)
+          std::printf("  symmetry: %zu of %zu collapses made in mirror pairs\n", r.paired_collapses, r.collapses);
         if (r.seam_stage != SeamStage::strict)
           std::printf("  seams relaxed: stage %s\n", seam_stage_name(r.seam_stage));
         if (!r.floors.empty()) {

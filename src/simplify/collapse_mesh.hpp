@@ -331,6 +331,17 @@ class CollapseMesh {
   std::uint32_t star_size(std::uint32_t v) const { return size_[v]; }
   // Distinct neighbours of v (not v itself), in a deterministic order.
   void ring(std::uint32_t v, std::vector<std::uint32_t>& out) const;
+  // Whether u and v share a face (both alive).
+  bool adjacent(std::uint32_t u, std::uint32_t v) const {
+    if (!alive(u) || !alive(v) || u == v) return false;
+    if (size_[v] < size_[u]) std::swap(u, v);
+    const std::uint32_t* fl = star(u);
+    for (std::uint32_t i = 0; i < size_[u]; ++i) {
+      const std::uint32_t* t = &tri_[3 * std::size_t{fl[i]}];
+      if (t[0] == v || t[1] == v || t[2] == v) return true;
+    }
+    return false;
+  }
   // Hints that the face list of v will be read soon.
   void prefetch_star(std::uint32_t v) const { __builtin_prefetch(star(v)); }
   // Calls f(w) for every vertex of every face of u and of v (with repeats): their closed neighbourhood.

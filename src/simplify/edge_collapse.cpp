@@ -15,6 +15,8 @@
 //   commit()    in selection order: over-budget candidates dropped, refused ones parked on their endpoints,
 //               list space reserved for the rest; then, in parallel, each collapse applied and the edges
 //               around its survivor re-evaluated (its closed neighbourhood is its own)
+//               With symmetry_weight, a candidate whose mirror image is an edge too is selected with it (the
+//               pair at its mean cost); one whose mirror is gone goes back at (1 + weight) times its cost first
 //   requeue()   the fresh candidates pushed in survivor order
 //   release()   candidates parked around the survivors evaluated again and pushed
 //   output      compact alive faces, wedges and vertices (finish_result)
@@ -26,6 +28,7 @@
 #include <limits>
 #include <map>
 #include <string>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -52,6 +55,10 @@ constexpr std::size_t kPurgeFactor = 3;
 // candidate's neighbourhood, and its star would be walked once per such candidate popped).
 constexpr std::size_t kLargeStars = 64;
 
+// A candidate goes back into the queue when its symmetric cost (the pair's mean, or its own cost times
+// 1 + symmetry_weight) exceeds its queued cost by more than this factor; within it, it is taken as it is.
+constexpr double kRekeySlack = 1.01;
+
 class GreedyEngine {
  public:
   GreedyEngine(const Mesh& triangles, const SimplifyOptions& options, const CollapsePolicies& policies,
@@ -65,7 +72,9 @@ class GreedyEngine {
         budget2_(normalised_budget_squared(stop_, cm_.scale())),
         parked_(cm_.vertex_count()),
         volume_limit_(volume_limit(options, cm_)),
-        mark_(cm_.vertex_count(), 0) {}
+        mark_(cm_.vertex_count(), 0) {
+    if (options.symmetry_weight > 0.0) setup_symmetry(triangles);
+  }
 
   SimplifyResult run(std::chrono::steady_clock::time_point start) {
     result_.timings.setup_ms = elapsed_ms(start);
@@ -171,8 +180,11 @@ class GreedyEngine {
     batch = std::min(batch, (remaining + 1) / 2);  // an interior collapse removes two triangles
 
     selected_.clear();
+    role_.clear();
+    link_.clear();
     deferred_.clear();
     ++stamp_;
+    if (!pending_.empty()) take_pending();
     bool full = false;
     auto is_current = [this](const QueueEntry& e) { return current(e); };
     while (!full && selected_.size() < batch) {
@@ -221,6 +233,14 @@ class GreedyEngine {
         } else {
           for (const std::uint32_t* w = ring_begin; w != ring_end; ++w) conflict |= mark_[*w] == stamp_;
         }
+        QueueEntry partner{};
+        Pairing pairing = Pairing::single;
+        if (!conflict && !mirror_.empty()) {
+          pairing = pair_up(window_[i], partner);
+          if (pairing == Pairing::requeued) continue;
+          // The pair goes in one batch or waits: its mirror must not touch what is claimed already.
+          if (pairing == Pairing::pair && claimed(partner)) conflict = true;
+        }
         if (conflict) {
           deferred_.push_back(window_[i]);
           full = deferred_.size() >= 2 * batch;
@@ -232,6 +252,20 @@ class GreedyEngine {
           for (const std::uint32_t* w = ring_begin; w != ring_end; ++w) mark_[*w] = stamp_;
         }
         selected_.push_back(window_[i]);
+        role_.push_back(kAlone);
+        link_.push_back({});
+        if (pairing == Pairing::pair) {
+          if (!claimed(partner)) {
+            cm_.for_each_closed_ring_vertex(partner.u(), partner.v, [&](std::uint32_t w) { mark_[w] = stamp_; });
+            role_.back() = kPairHead;
+            selected_.push_back(partner);
+            role_.push_back(kAlone);
+            link_.push_back({});
+          } else {  // its mirror overlaps its own neighbourhood (near the plane): it follows next round
+            role_.back() = kLeads;
+            link_.back() = {partner.u(), partner.v};
+          }
+        }
       }
       for (; i < nwin; ++i) queue_.push(window_[i]);  // popped beyond the selection: not looked at
     }
@@ -278,61 +312,55 @@ class GreedyEngine {
     survivors_.clear();
     committed_.clear();
     ring_first_.clear();
-    std::uint32_t total = 0;
+    total_ = 0;
     std::size_t room = 0;
     for (std::size_t i = 0; i < ns; ++i) {
       if (evals_[i].error <= budget2_ && checks_[i].ok()) room += cm_.list_room(checks_[i]);
     }
     cm_.make_room(room);
     for (std::size_t i = 0; i < ns; ++i) {
-      if (evals_[i].error > budget2_) {
-        over_budget_ = true;  // not parked: its cost only changes when an endpoint does
-        ++result_.vetoes[Veto::error_budget];
-        continue;
-      }
-      if (!checks_[i].ok()) {
-        parked_.park(selected_[i].u(), selected_[i].v);
-        ++result_.vetoes[checks_[i].veto];
-        over_budget_ = over_budget_ || checks_[i].veto == Veto::error_budget;  // a guarded budget refused it
-        continue;
-      }
-      if (cm_.removes_last_material(checks_[i])) {  // counts only fall: never valid again
-        ++result_.vetoes[Veto::seam];
-        continue;
-      }
-      const Check& c = checks_[i];
-      if (volume_limit_ < std::numeric_limits<double>::infinity()) {
-        // The neighbourhoods of a batch are disjoint and none is applied yet: the change is exact.
-        const double dv = volume_sign(options_) * cm_.volume_change(c.victim, c.survivor, evals_[i].position);
-        if (volume_used_ + dv > volume_limit_) {  // stop before the budget is exceeded
-          volume_stop_ = over_budget_ = true;
-          break;
+      if (role_[i] == kPairHead) {  // selected_[i] and selected_[i + 1] mirror each other: both or neither
+        const bool a = acceptable(i), b = acceptable(i + 1);
+        if (!(a && b)) {
+          for (const std::size_t k : {i, i + 1}) {
+            if (acceptable(k)) {
+              requeue_alone(selected_[k]);
+            } else {
+              refuse(k);
+            }
+          }
+          ++i;
+          continue;
         }
-        volume_used_ += dv;
+        if (!within_volume(volume_change(i) + volume_change(i + 1))) break;
+        accept(i);
+        accept(i + 1);
+        mirror_collapsed(checks_[i], checks_[i + 1]);
+        result_.paired_collapses += 2;
+        ++i;
+        continue;
       }
-      ring_first_.push_back(total);
-      total += 2 * (cm_.star_size(c.victim) + cm_.star_size(c.survivor) - 2 * c.edge_face_count);
-      cm_.reserve(checks_[i]);
-      max_error_ = std::max(max_error_, evals_[i].error);
-      committed_.push_back(static_cast<std::uint32_t>(i));
-      survivors_.push_back(c.survivor);
-      ++result_.collapses;
-      if (log_ != nullptr) {
-        log_->push_back({selected_[i].u(), selected_[i].v, evals_[i].position, evals_[i].error, cm_.stage()});
+      if (!acceptable(i)) {
+        refuse(i);
+        if (role_[i] == kCompletes) forget_victim(link_[i].b);  // the first half stays alone
+        continue;
       }
-      if (policies_.on_collapse) {
-        policies_.on_collapse({.victim = c.victim,
-                               .survivor = c.survivor,
-                               .position = cm_.model_position(evals_[i].position),
-                               .error = cm_.model_error(evals_[i].error),
-                               .triangles = cm_.alive_faces()});
+      if (!within_volume(volume_change(i))) break;
+      accept(i);
+      if (role_[i] == kLeads) {
+        pending_.push_back({link_[i].a, link_[i].b, checks_[i].survivor, checks_[i].victim});
+      } else if (role_[i] == kCompletes) {
+        completed(link_[i].a, link_[i].b, checks_[i]);
+        result_.paired_collapses += 2;
+      } else if (!mirror_.empty()) {
+        collapsed_alone(selected_[i], checks_[i]);
       }
     }
     const std::size_t nsurv = survivors_.size();
-    ring_first_.push_back(total);
-    ring_buf_.resize(total);
+    ring_first_.push_back(total_);
+    ring_buf_.resize(total_);
     ring_size_.resize(nsurv);
-    fresh_.resize(total);
+    fresh_.resize(total_);
 
     parallel_.for_ranges(nsurv, 8, [&](std::size_t b, std::size_t e) {
       Scratch& s = scratch_.local();
@@ -348,6 +376,198 @@ class GreedyEngine {
         reevaluate_ring(i, s);
       }
     });
+  }
+
+  // Whether selected candidate i may commit: within the budget, its checks passed, not the last face of a material.
+  bool acceptable(std::size_t i) const {
+    return evals_[i].error <= budget2_ && checks_[i].ok() && !cm_.removes_last_material(checks_[i]);
+  }
+
+  // Candidate i may not commit: counted by why, and parked where a change around it may make it valid.
+  void refuse(std::size_t i) {
+    if (evals_[i].error > budget2_) {
+      over_budget_ = true;  // not parked: its cost only changes when an endpoint does
+      ++result_.vetoes[Veto::error_budget];
+    } else if (!checks_[i].ok()) {
+      parked_.park(selected_[i].u(), selected_[i].v);
+      ++result_.vetoes[checks_[i].veto];
+      over_budget_ = over_budget_ || checks_[i].veto == Veto::error_budget;  // a guarded budget refused it
+    } else {  // removes_last_material: counts only fall, never valid again
+      ++result_.vetoes[Veto::seam];
+    }
+  }
+
+  // The volume candidate i adds (bounding) or removes (occluder); 0 without a volume budget. The
+  // neighbourhoods of a batch are disjoint and none is applied yet: the change is exact.
+  double volume_change(std::size_t i) const {
+    if (!(volume_limit_ < std::numeric_limits<double>::infinity())) return 0.0;
+    return volume_sign(options_) * cm_.volume_change(checks_[i].victim, checks_[i].survivor, evals_[i].position);
+  }
+
+  // Whether `dv` more fits the volume budget (then it is spent); false stops the run before it is exceeded.
+  bool within_volume(double dv) {
+    if (!(volume_limit_ < std::numeric_limits<double>::infinity())) return true;
+    if (volume_used_ + dv > volume_limit_) {
+      volume_stop_ = over_budget_ = true;
+      return false;
+    }
+    volume_used_ += dv;
+    return true;
+  }
+
+  // Commits selected candidate i: list room, survivor, log and callback (applied in parallel afterwards).
+  void accept(std::size_t i) {
+    const Check& c = checks_[i];
+    ring_first_.push_back(total_);
+    total_ += 2 * (cm_.star_size(c.victim) + cm_.star_size(c.survivor) - 2 * c.edge_face_count);
+    cm_.reserve(checks_[i]);
+    max_error_ = std::max(max_error_, evals_[i].error);
+    committed_.push_back(static_cast<std::uint32_t>(i));
+    survivors_.push_back(c.survivor);
+    ++result_.collapses;
+    if (log_ != nullptr) {
+      log_->push_back({selected_[i].u(), selected_[i].v, evals_[i].position, evals_[i].error, cm_.stage()});
+    }
+    if (policies_.on_collapse) {
+      policies_.on_collapse({.victim = c.victim,
+                             .survivor = c.survivor,
+                             .position = cm_.model_position(evals_[i].position),
+                             .error = cm_.model_error(evals_[i].error),
+                             .triangles = cm_.alive_faces()});
+    }
+  }
+
+  // ---- symmetry -----------------------------------------------------------------------------------------------
+
+  enum class Pairing { single, pair, requeued };
+
+  // A candidate re-queued at its symmetric cost: its version sum then, its own cost, and whether it was sent
+  // back because its mirror could not go with it (then it goes alone when it surfaces again).
+  struct Rekeyed {
+    std::uint32_t vsum = 0;
+    float cost = 0;
+    bool alone = false;
+  };
+
+  void setup_symmetry(const Mesh& triangles) {
+    if (options_.vertex_mirror != nullptr) {
+      if (options_.vertex_mirror->size() == cm_.vertex_count()) mirror_ = *options_.vertex_mirror;
+    } else {
+      symmetry::SymmetryMap map = symmetry::detect_symmetry(triangles, {.plane = options_.symmetry_plane});
+      if (map.found()) mirror_ = std::move(map.vertex_mirror);
+    }
+    for (std::uint32_t& m : mirror_) {
+      if (m >= cm_.vertex_count()) m = kInvalidIndex;
+    }
+  }
+
+  static std::uint64_t edge_id(std::uint32_t u, std::uint32_t v) { return (std::uint64_t{u} << 32) | v; }
+
+  // The candidate's own cost: its key, or what it was before pair_up() raised it.
+  float own_cost(const QueueEntry& e) const {
+    const auto it = rekeyed_.find(edge_id(e.u(), e.v));
+    if (it != rekeyed_.end() && it->second.vsum == e.vsum) return it->second.cost;
+    return std::bit_cast<float>(e.bits());
+  }
+
+  // Whether the closed neighbourhood of `e` touches what this round has claimed.
+  bool claimed(const QueueEntry& e) const {
+    bool hit = false;
+    cm_.for_each_closed_ring_vertex(e.u(), e.v, [&](std::uint32_t w) { hit |= mark_[w] == stamp_; });
+    return hit;
+  }
+
+  // How a candidate about to be selected goes: with its mirror image (`partner`) when that is an edge too and
+  // the pair's mean cost is the cheaper way, alone when it has no mirror or is its own (on the plane), or back
+  // into the queue (once) at the cost of the way it will go, when that is higher than its queued cost.
+  Pairing pair_up(const QueueEntry& e, QueueEntry& partner) {
+    const std::uint32_t u = e.u(), v = e.v;
+    const std::uint32_t mu = mirror_[u], mv = mirror_[v];
+    if (mu == kInvalidIndex || mv == kInvalidIndex) return Pairing::single;  // outside the symmetric part
+    if ((mu == u && mv == v) || (mu == v && mv == u)) return Pairing::single;  // its own mirror image
+    const auto tag = rekeyed_.find(edge_id(u, v));
+    const bool settled = tag != rekeyed_.end() && tag->second.vsum == e.vsum;
+    const double cost = settled ? tag->second.cost : std::bit_cast<float>(e.bits());
+    double pair_cost = std::numeric_limits<double>::infinity();
+    if (!(settled && tag->second.alone) && cm_.adjacent(mu, mv) && cm_.rule(mu, mv) != EdgeRule::forbidden) {
+      partner = entry(std::min(mu, mv), std::max(mu, mv));
+      pair_cost = 0.5 * (cost + std::bit_cast<float>(partner.bits()));
+    }
+    const double alone_cost = cost * (1.0 + options_.symmetry_weight);
+    const double best = std::min(pair_cost, alone_cost);
+    if (!settled && best > cost * kRekeySlack) {
+      rekeyed_[edge_id(u, v)] = {e.vsum, static_cast<float>(cost), false};
+      queue_.push(make_entry(cost_bits(best), u, v, e.vsum));
+      return Pairing::requeued;
+    }
+    return pair_cost <= alone_cost ? Pairing::pair : Pairing::single;
+  }
+
+  // A paired candidate that may commit while its mirror may not: back into the queue at the cost of going
+  // alone.
+  void requeue_alone(const QueueEntry& e) {
+    const float cost = own_cost(e);
+    rekeyed_[edge_id(e.u(), e.v)] = {e.vsum, cost, true};
+    queue_.push(make_entry(cost_bits(cost * (1.0 + options_.symmetry_weight)), e.u(), e.v, e.vsum));
+  }
+
+  // A mirror pair committed: the survivors mirror each other.
+  void mirror_collapsed(const Check& a, const Check& b) {
+    mirror_[a.victim] = mirror_[b.victim] = kInvalidIndex;
+    mirror_[a.survivor] = b.survivor;
+    mirror_[b.survivor] = a.survivor;
+  }
+
+  // A collapse made alone: the victim's mirror loses its partner; the survivor of an edge that was its own
+  // mirror image lies on the plane.
+  void collapsed_alone(const QueueEntry& e, const Check& c) {
+    const bool own = mirror_[e.u()] != kInvalidIndex &&
+                     ((mirror_[e.u()] == e.u() && mirror_[e.v] == e.v) || (mirror_[e.u()] == e.v && mirror_[e.v] == e.u()));
+    forget_victim(c.victim);
+    if (own) mirror_[c.survivor] = c.survivor;
+  }
+
+  void forget_victim(std::uint32_t x) {
+    const std::uint32_t m = mirror_[x];
+    if (m != kInvalidIndex && m != x && mirror_[m] == x) mirror_[m] = kInvalidIndex;
+    mirror_[x] = kInvalidIndex;
+  }
+
+  // The second half of a pair that overlapped near the plane committed: `survivor` and `victim` are the
+  // first half's. Where both kept the same vertex (three merged into one), it lies on the plane.
+  void completed(std::uint32_t survivor, std::uint32_t victim, const Check& c) {
+    mirror_[victim] = mirror_[c.victim] = kInvalidIndex;
+    if (c.survivor == survivor) {
+      mirror_[survivor] = survivor;
+    } else {
+      mirror_[survivor] = c.survivor;
+      mirror_[c.survivor] = survivor;
+    }
+  }
+
+  // At the start of a round, the mirror halves of last round's overlapping pairs, ahead of everything else (the
+  // first half's victim now reads as its survivor). One that is no longer an edge leaves its first half alone.
+  void take_pending() {
+    std::vector<Pending> keep;
+    for (const Pending& p : pending_) {
+      std::uint32_t u = p.u == p.victim ? p.survivor : p.u;
+      std::uint32_t v = p.v == p.victim ? p.survivor : p.v;
+      if (u > v) std::swap(u, v);
+      if (u == v || !cm_.adjacent(u, v) || cm_.rule(u, v) == EdgeRule::forbidden) {
+        forget_victim(p.victim);
+        continue;
+      }
+      const QueueEntry e = entry(u, v);
+      if (claimed(e)) {  // beside another pending half: next round
+        keep.push_back(p);
+        continue;
+      }
+      cm_.for_each_closed_ring_vertex(u, v, [&](std::uint32_t w) { mark_[w] = stamp_; });
+      selected_.push_back(e);
+      role_.push_back(kCompletes);
+      link_.push_back({p.survivor, p.victim});
+    }
+    pending_.swap(keep);
   }
 
   // Survivor i's ring into its region of ring_buf_, and a fresh candidate for every allowed edge of it.
@@ -431,6 +651,24 @@ class GreedyEngine {
   std::vector<std::uint32_t> mark_;  // mark_[v] == stamp_: v is in the current round's claimed set
   std::uint32_t stamp_ = 0;
   std::vector<QueueEntry> selected_, deferred_, window_;
+  // Per selected_: how it relates to its mirror image, and (kLeads) the mirror edge or (kCompletes) the first
+  // half's survivor and victim.
+  enum Role : std::uint8_t {
+    kAlone,      // no mirror to go with (or the second of a pair)
+    kPairHead,   // the next selected is its mirror image: they commit together
+    kLeads,      // its mirror overlaps its neighbourhood: it goes now, the mirror first thing next round
+    kCompletes,  // the mirror half of last round's kLeads
+  };
+  struct Link {
+    std::uint32_t a = kInvalidIndex, b = kInvalidIndex;
+  };
+  struct Pending {
+    std::uint32_t u, v, survivor, victim;  // the mirror edge, and the first half's survivor and victim
+  };
+  std::vector<std::uint8_t> role_;
+  std::vector<Link> link_;
+  std::vector<Pending> pending_;
+  std::uint32_t total_ = 0;   // commit(): list room handed out so far
   std::vector<std::size_t> window_first_;
   std::vector<char> window_large_;  // closed neighbourhood over kLargeStars: walked in the sequential pass, when needed
   std::vector<std::uint32_t> closed_ring_;
@@ -439,6 +677,11 @@ class GreedyEngine {
   std::vector<std::uint32_t> survivors_, committed_, ring_first_, ring_buf_, ring_size_;
   std::vector<QueueEntry> fresh_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> released_;
+
+  // Symmetry (empty: off): per vertex its mirror image (itself on the plane, kInvalidIndex: none), kept
+  // through the collapses; candidates re-queued at their symmetric cost, by edge.
+  std::vector<std::uint32_t> mirror_;
+  std::unordered_map<std::uint64_t, Rekeyed> rekeyed_;
 };
 
 }  // namespace

@@ -64,6 +64,9 @@ std::vector<std::string> SimplifyOptions::validate() const {
     problems.push_back(std::string("conservative = ") + conservative_name(conservative) +
                        " needs the edge_collapse or multiple_choice engine");
   }
+  if (!(symmetry_weight >= 0.0 && std::isfinite(symmetry_weight))) {
+    problems.push_back("symmetry_weight must be finite and >= 0, got " + std::to_string(symmetry_weight));
+  }
   if (tile_triangles < 100) {
     problems.push_back("tile_triangles must be at least 100, got " + std::to_string(tile_triangles));
   }
@@ -238,6 +241,7 @@ SimplifyResult hold_polychord_budget(const Mesh& mesh, const SimplifyOptions& op
   };
   SimplifyOptions rest = options;
   rest.engine = Engine::edge_collapse;
+  rest.vertex_mirror = nullptr;  // the quad output's vertices are not the input's
   rest.budget_reference = &reference;
   rest.budget_reference_index = &reference_index;
   BudgetCheck quad_check;
@@ -329,6 +333,7 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options, c
     path = restart ? PolychordPath::restarted : PolychordPath::handed_over;
     SimplifyOptions rest = options;
     rest.engine = Engine::edge_collapse;
+    rest.vertex_mirror = nullptr;  // the quad output's vertices are not the input's
     rest.target_triangles = std::max<std::size_t>(target, 1);
     if (!restart) rest.locked_vertices = locked_vertices_in(q.mesh, mesh, options.locked_vertices);
     r = collapse::run_edge_collapse(triangulated(restart ? mesh : q.mesh), rest, policies);

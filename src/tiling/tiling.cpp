@@ -434,6 +434,8 @@ SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& opti
 
   SimplifyOptions base = options;
   base.tiling = TilingMode::off;
+  base.symmetry_weight = 0.0;  // a tile does not hold both sides of the mirror
+  base.vertex_mirror = nullptr;
   base.target_ratio = 1.0;
   // A relative QEM cap is relative to the whole mesh, not to a tile.
   if (options.max_error_rel >= 0.0) {

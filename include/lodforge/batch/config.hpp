@@ -46,8 +46,8 @@ class ConfigError : public std::runtime_error {
 // SimplifyOptions is a one-line change of its table entry in config.cpp).
 struct PendingOptions {
   // Which mirror plane to look for (`symmetry_plane`: auto | x | y | z | none). Per asset: set in `defaults` or
-  // a class's `options`, not per LOD. The runner reports the detected symmetry (report.json input.symmetry);
-  // a symmetry cost term will take it from there.
+  // a class's `options`, not per LOD. The runner reports the detected symmetry (report.json input.symmetry),
+  // and every LOD looks for this plane where its symmetry_weight is above 0.
   symmetry::PlaneMode symmetry_plane = symmetry::PlaneMode::automatic;
   friend bool operator==(const PendingOptions&, const PendingOptions&) = default;
 };

@@ -30,6 +30,7 @@
 #include "lodforge/core/mesh.hpp"
 #include "lodforge/core/stop.hpp"
 #include "lodforge/simplify/policies.hpp"
+#include "lodforge/symmetry/symmetry.hpp"
 
 namespace lodforge {
 
@@ -169,6 +170,18 @@ struct SimplifyOptions {
   double skin_weight_threshold = 0.1;
   double skin_max_distance = 0.5;
 
+  // --- symmetry (edge_collapse engine; the polychord engine's triangle phase) ---
+  // How strongly mirror pairs are favoured; 0 = off. Above 0 the mesh's mirror symmetry is found
+  // (symmetry/symmetry.hpp) and an edge whose mirror image is also an edge collapses together with it, as one
+  // candidate costing the pair's mean; a collapse that would break the symmetry (its mirror edge is gone or
+  // refused) costs (1 + symmetry_weight) times its own error. Soft: painted priority on one side still keeps
+  // that side, and asymmetric regions simplify as without it. multiple_choice, cluster and tiled runs ignore it.
+  double symmetry_weight = 0.0;
+  symmetry::PlaneMode symmetry_plane = symmetry::PlaneMode::automatic;
+  // The mirror vertex of each input vertex (itself on the plane, kInvalidIndex: none), where the caller found
+  // it already; null: found by the engine when symmetry_weight > 0.
+  const std::vector<std::uint32_t>* vertex_mirror = nullptr;
+
   // Error budgets are verified by measurement (SimplifyResult::budget): the output's distance to
   // budget_reference (null: the input) must stay within the budget both ways, and where the engine's run
   // exceeds it, fewer collapses are made. Set budget_reference to the original when simplifying from a
@@ -281,6 +294,7 @@ struct SimplifyResult {
     double setup_ms = 0, initial_costs_ms = 0, collapse_ms = 0, output_ms = 0;
   } timings;
   std::size_t collapses = 0;
+  std::size_t paired_collapses = 0;  // collapses made together with their mirror image (symmetry_weight)
   std::size_t rounds = 0;           // parallel rounds (edge_collapse batches, multiple_choice sample rounds)
   VetoCounts vetoes;                // candidates refused, per rule (vetoes.rejected(): at check time)
   // Faces that are quads before (input) and after; only the polychord engine outputs quads.

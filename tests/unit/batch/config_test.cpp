@@ -22,7 +22,7 @@ constexpr const char* kOptionKeys =
     "engine, border, border_weight, regularization_weight, max_flip_angle_deg, seed, multiple_choice_k, max_batch, "
     "attribute_weights, seams, permissive, priority_channel, attribute_placement, priority_lock, "
     "skin_weight_threshold, "
-    "skin_max_distance, tiling, tile_triangles, conservative, max_volume_growth";
+    "skin_max_distance, tiling, tile_triangles, symmetry_weight, conservative, max_volume_growth";
 // `defaults` and class options also take the per-asset options.
 const std::string kClassOptionKeys = std::string(kOptionKeys) + ", symmetry_plane";
 
@@ -668,6 +668,19 @@ TEST(BatchConfigErrors, SymmetryPlane) {
   // Detection is per asset, so a LOD cannot choose another plane.
   EXPECT_EQ(error_with("/classes/0/lods/0/symmetry_plane", "x"),
             expected("classes[0].lods[0].symmetry_plane: unknown key; allowed: " + lod_keys()));
+}
+
+// symmetry_weight is a simplifier option at every level; each LOD's options carry its class's plane.
+TEST(BatchConfig, SymmetryWeightReachesTheSimplifier) {
+  const BatchConfig c = parse_config(with_classes(R"([
+    {"name": "characters", "match": ["**"], "options": {"symmetry_plane": "x", "symmetry_weight": 2},
+     "lods": [{"ratio": 0.5}, {"ratio": 0.25, "symmetry_weight": 0}]}])"));
+  const SimplifyOptions a = simplify_options_for(c.classes[0].lods[0], input(1000, 4.0));
+  const SimplifyOptions b = simplify_options_for(c.classes[0].lods[1], input(1000, 4.0));
+  EXPECT_DOUBLE_EQ(a.symmetry_weight, 2.0);
+  EXPECT_EQ(a.symmetry_plane, symmetry::PlaneMode::x);
+  EXPECT_DOUBLE_EQ(b.symmetry_weight, 0.0);
+  EXPECT_EQ(error_with("/defaults/symmetry_weight", -1), expected("defaults.symmetry_weight: must be >= 0"));
 }
 
 // The plane defaults to auto, a class's options override `defaults`, and the effective config writes it back.
