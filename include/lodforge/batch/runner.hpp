@@ -186,5 +186,8 @@ bool pictures_pay(std::size_t input_triangles, std::size_t rendered_triangles, s
 
 // Output names: "props/crate.obj" LOD 2 -> "props/crate_LOD2.obj".
 std::string lod_file_name(const std::filesystem::path& relative_path, std::size_t level);
+// "props/crate.obj" -> "crate_collision.obj" / "crate_occluder.obj" (the file name of a separate output; in a
+// glTF with MSFT_lod the same suffix names its meshes and nodes).
+std::string conservative_file_name(const std::filesystem::path& relative_path, ConservativeKind kind);
 
 }  // namespace lodforge::batch
