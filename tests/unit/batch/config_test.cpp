@@ -513,8 +513,15 @@ TEST(BatchConfig, SchemaDocumentsEveryKey) {
   for (const char* key : {"$schema", "version", "description", "defaults", "default_class", "classes"}) {
     EXPECT_TRUE(schema["properties"].contains(key)) << key;
   }
-  for (const char* key : {"name", "description", "match", "options", "lods"}) {
+  for (const char* key : {"name", "description", "match", "options", "lods", "collision", "occluder"}) {
     EXPECT_TRUE(defs["class"]["properties"].contains(key)) << key;
+  }
+  for (const char* key : {"collision", "occluder"}) EXPECT_TRUE(defs["defaults"]["properties"].contains(key)) << key;
+  for (const char* key : {"ratio", "triangles", "max_error", "max_volume_growth", "from"}) {
+    EXPECT_TRUE(defs["collision"]["properties"].contains(key)) << key;
+  }
+  for (const char* key : {"ratio", "triangles", "max_error", "from"}) {
+    EXPECT_TRUE(defs["occluder"]["properties"].contains(key)) << key;
   }
   for (const char* key : {"ratio", "triangles", "max_error", "screen_size", "from"}) {
     EXPECT_TRUE(defs["lod"]["properties"].contains(key)) << key;
