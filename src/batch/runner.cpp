@@ -1552,7 +1552,7 @@ Plan plan_batch(const BatchConfig& config, const RunOptions& options) {
           std::snprintf(pct, sizeof pct, " %g%%", c.max_volume_growth_pct);
           what += pct;
         }
-        a.lods.push_back(what);
+        a.separate.push_back(what);
       }
       if (options.force) {
         a.rebuild = true;

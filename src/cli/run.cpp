@@ -225,6 +225,7 @@ void print_plan(const batch::Plan& plan) {
     for (std::size_t k = 0; k < a.lods.size(); ++k) {
       lods += (k ? ", " : "") + std::string("LOD") + std::to_string(k + 1) + " " + a.lods[k];
     }
+    for (const std::string& c : a.separate) lods += "; " + c;
     a.rebuild ? ++rebuild : ++fresh;
     std::printf("%s: class %s; %s; %s\n", a.path.c_str(), a.class_name.c_str(), lods.c_str(),
                 a.rebuild ? ("rebuild (" + a.reason + ")").c_str() : "up to date");

@@ -142,6 +142,8 @@ struct PlannedAsset {
   std::string path;
   std::string class_name;         // empty: no class matches (the asset would be skipped)
   std::vector<std::string> lods;  // "ratio 0.5", "triangles 60", "max_error 0.03", "screen_size 2"
+  // Collision and occluder LODs: "collision ratio 0.05, max_volume_growth 10%", "occluder triangles 200".
+  std::vector<std::string> separate;
   bool rebuild = false;
   std::string reason;  // why it is rebuilt ("not built yet", "input or config changed", ...) or skipped
 };

@@ -27,7 +27,7 @@ namespace fs = std::filesystem;
 namespace ct = conservative_test;
 using Json = nlohmann::json;
 
-// Two closed solids (an OBJ blob and a GLB torus) and one class with a render chain, a collision hull with a
+// Closed solids (an OBJ blob, a GLB torus, and a .gltf holding both as two meshes) and one class with a render chain, a collision hull with a
 // volume budget and an occluder.
 struct Solids {
   fs::path root;
@@ -39,6 +39,7 @@ Solids write_solids(const fs::path& root) {
   fs::create_directories(root / "solids");
   io::save_asset(testlib::asset_of({s.blob}, io::Format::obj), root / "solids/blob.obj");
   io::save_asset(testlib::asset_of({s.ring}, io::Format::glb), root / "solids/ring.glb");
+  io::save_asset(testlib::asset_of({s.blob, s.ring}, io::Format::gltf, false), root / "solids/pair.gltf");
   return s;
 }
 
@@ -94,8 +95,12 @@ TEST(BatchConservative, FilesModeWritesNestingCollisionAndOccluderFiles) {
   const RunResult r = testlib::run(lib.root, dir / "out", 2, solids_config("files"));
   ASSERT_EQ(r.failed, 0u) << (r.failures.empty() ? "" : r.failures.front());
   EXPECT_TRUE(check_report(r.report).empty()) << check_report(r.report).front();
-  EXPECT_EQ(r.report["summary"]["conservative_lods"], 4);
-  EXPECT_EQ(r.report["summary"]["lods"], 4) << "collision and occluder LODs are no render levels";
+  EXPECT_EQ(r.report["summary"]["conservative_lods"], 6);
+  EXPECT_EQ(r.report["summary"]["lods"], 6) << "collision and occluder LODs are no render levels";
+  // A .gltf's separate outputs are a .gltf and its buffer each, both listed under the entry.
+  EXPECT_EQ(entry_of(record_of(r.report, "solids/pair.gltf"), "collision")["outputs"],
+            Json::array({"solids/pair_collision.bin", "solids/pair_collision.gltf"}));
+  EXPECT_EQ(io::load_asset(dir / "out/solids/pair_collision.gltf").meshes.size(), 2u);
 
   struct Case {
     std::string path;
@@ -183,6 +188,14 @@ TEST(BatchConservative, MsftLodModeWritesNodesOutsideTheLodExtension) {
   ASSERT_EQ(separate.size(), 2u);
   ASSERT_TRUE(separate.count("collision") && separate.count("occluder"));
 
+  // Two meshes: a collision and an occluder node beside each of their nodes.
+  const fs::path pair = dir / "out/solids/pair.gltf";
+  const Json pair_doc = testlib::gltf_json(pair);
+  std::size_t pair_separate = 0;
+  for (const Json& node : pair_doc["nodes"]) pair_separate += node.contains("extras") && node["extras"].contains("lodforge");
+  EXPECT_EQ(pair_separate, 4u);
+  EXPECT_EQ(entry_of(record_of(r.report, "solids/pair.gltf"), "occluder")["gltf_node_suffix"], "_occluder");
+
   // The meshes those nodes show nest with the source (load_asset converts the file's glTF meshes in order).
   const io::Asset written = io::load_asset(file);
   auto mesh_of = [&](std::size_t node) {
@@ -192,7 +205,7 @@ TEST(BatchConservative, MsftLodModeWritesNodesOutsideTheLodExtension) {
   EXPECT_EQ(mesh_of(separate["collision"]).triangle_count(),
             entry_of(rec, "collision")["triangles"].get<std::size_t>());
   if (const std::string why = testlib::gltf_validator_unavailable(); !why.empty()) GTEST_SKIP() << why;
-  const auto v = testlib::validate_gltf({file});
+  const auto v = testlib::validate_gltf({file, pair});
   EXPECT_EQ(v.exit_code, 0) << v.output;
 }
 
@@ -210,20 +223,22 @@ TEST(BatchConservative, ReRunsAreCacheHitsAndPruneRemovesDroppedOutputs) {
   EXPECT_EQ(without_timings(one.report)["assets"], without_timings(first.report)["assets"]);
 
   const RunResult again = testlib::run(lib.root, out, 2, solids_config("files"));
-  EXPECT_EQ(again.cache_hits, 2u);
+  EXPECT_EQ(again.cache_hits, 3u);
   EXPECT_EQ(without_timings(record_of(again.report, "solids/blob.obj"))["conservative_lods"],
             without_timings(record_of(first.report, "solids/blob.obj"))["conservative_lods"]);
 
   // A missing collision file rebuilds its asset only.
   fs::remove(out / "solids/blob_collision.obj");
   const RunResult repaired = testlib::run(lib.root, out, 2, solids_config("files"));
-  EXPECT_EQ(repaired.cache_hits, 1u);
+  EXPECT_EQ(repaired.cache_hits, 2u);
   EXPECT_EQ(record_of(repaired.report, "solids/blob.obj")["cache_hit"], false);
   EXPECT_TRUE(fs::exists(out / "solids/blob_collision.obj"));
 
   // A config without them: a new cache key, and their files are stale (removed with --prune).
-  const std::vector<std::string> dropped = {"solids/blob_collision.obj", "solids/blob_occluder.obj",
-                                            "solids/ring_collision.glb", "solids/ring_occluder.glb"};
+  const std::vector<std::string> dropped = {"solids/blob_collision.obj",  "solids/blob_occluder.obj",
+                                            "solids/pair_collision.bin",  "solids/pair_collision.gltf",
+                                            "solids/pair_occluder.bin",   "solids/pair_occluder.gltf",
+                                            "solids/ring_collision.glb",  "solids/ring_occluder.glb"};
   const RunResult listed_run = testlib::run(lib.root, out, 2, solids_config("files", false));
   EXPECT_EQ(listed_run.cache_hits, 0u);
   EXPECT_FALSE(record_of(listed_run.report, "solids/blob.obj").contains("conservative_lods"));
@@ -250,7 +265,7 @@ TEST(BatchConservative, AFailingAssetFailsAlone) {
   };
   const RunResult r = run_batch(cfg, options);
   EXPECT_EQ(r.failed, 1u);
-  EXPECT_EQ(r.succeeded, 1u);
+  EXPECT_EQ(r.succeeded, 2u);
   EXPECT_FALSE(record_of(r.report, "solids/blob.obj").contains("conservative_lods"));
   EXPECT_FALSE(fs::exists(dir / "out/solids/blob_collision.obj"));
   EXPECT_TRUE(fs::exists(dir / "out/solids/ring_collision.glb"));
