@@ -510,19 +510,19 @@ const std::vector<Field<AttributeWeights>>& attribute_weight_fields() {
   return fields;
 }
 
-// Conservative LODs (collision hulls, occluders) are separate outputs, never render levels of a chain, and the
-// runner does not write such outputs yet: the keys parse, and any value that asks for one is refused. Left out of
-// the effective config at their defaults, so that cache keys stay as they were.
-constexpr std::string_view kNoConservativeOutputs =
-    "collision and occluder LODs are separate outputs, not render levels of a LOD chain; the batch runner does "
-    "not write them yet (use `lodforge simplify --conservative bounding|occluder`, docs/conservative.md)";
+// Conservative LODs (collision hulls, occluders) are separate outputs, never render levels of a chain: they are
+// the class's `collision` and `occluder` entries. In the option levels the keys parse and only their neutral
+// values are accepted; left out of the effective config at those, so that cache keys stay as they were.
+constexpr std::string_view kConservativeOutputs =
+    "collision and occluder LODs are separate outputs, not render levels of a LOD chain: give them as a "
+    "\"collision\" or \"occluder\" entry of the class or of defaults (docs/conservative.md)";
 
 Field<LodOptions> conservative_field() {
   return {"conservative",
           [](const Json& v, const std::string& path, LodOptions& o, Problems& p) {
             const auto x = read_enum(v, path, std::span<const EnumName<Conservative>>(kConservativeNames), p);
             if (!x) return;
-            if (*x != Conservative::none) p.add(path, std::string(kNoConservativeOutputs));
+            if (*x != Conservative::none) p.add(path, std::string(kConservativeOutputs));
             else o.simplify.conservative = *x;
           },
           [](const LodOptions& o) {
@@ -538,8 +538,12 @@ Field<LodOptions> max_volume_growth_field() {
           [](const Json& v, const std::string& path, LodOptions& o, Problems& p) {
             const auto x = read_number(v, path, Bounds{}, p);
             if (!x) return;
-            if (*x >= 0.0) p.add(path, "applies to conservative LODs only: " + std::string(kNoConservativeOutputs));
-            else o.simplify.max_volume_growth = *x;
+            if (*x >= 0.0) {
+              p.add(path, "applies to collision LODs only: write it in the \"collision\" entry of the class or of "
+                          "defaults (docs/conservative.md)");
+            } else {
+              o.simplify.max_volume_growth = *x;
+            }
           },
           [](const LodOptions& o) { return o.simplify.max_volume_growth < 0.0 ? Json() : Json(o.simplify.max_volume_growth); }};
 }
@@ -627,7 +631,7 @@ const std::vector<Field<ReportOptions>>& report_fields() {
 }
 
 constexpr std::string_view kRootKeys[] = {"$schema", "version", "description", "defaults", "default_class", "classes"};
-constexpr std::string_view kClassKeys[] = {"name", "description", "match", "options", "lods"};
+constexpr std::string_view kClassKeys[] = {"name", "description", "match", "options", "lods", "collision", "occluder"};
 constexpr std::string_view kTargetKeys[] = {"ratio", "triangles", "max_error", "screen_size"};
 constexpr std::string_view kErrorKeys[] = {"relative", "absolute"};
 constexpr std::string_view kScreenKeys[] = {"pixels", "screen_height_px", "fov_y_deg", "error_px"};
@@ -653,6 +657,8 @@ std::vector<std::string_view> defaults_keys() {
   append_keys(keys, limit_fields());
   append_keys(keys, report_fields());
   keys.push_back("lod_switch");
+  keys.push_back("collision");
+  keys.push_back("occluder");
   return keys;
 }
 
@@ -764,26 +770,25 @@ std::optional<LodTarget> read_target(const Json& lod, const std::string& path, P
 }
 
 // What the statically known part of the target means for SimplifyOptions (exact for a build from the source).
-void set_source_target(LodSpec& lod) {
-  SimplifyOptions& o = lod.options.simplify;
+void set_source_target(SimplifyOptions& o, const LodTarget& target) {
   o.target_ratio = 1.0;
   o.target_triangles = 0;
   o.max_error_abs = -1.0;
   o.max_error_rel = -1.0;
-  switch (lod.target.kind) {
+  switch (target.kind) {
     case TargetKind::ratio:
-      o.target_ratio = lod.target.ratio;
+      o.target_ratio = target.ratio;
       break;
     case TargetKind::triangles:
-      o.target_triangles = lod.target.triangles;
+      o.target_triangles = target.triangles;
       break;
     case TargetKind::max_error_rel:
     case TargetKind::screen_size:
-      o.max_error_rel = lod.target.max_error;
+      o.max_error_rel = target.max_error;
       o.target_triangles = 1;  // the error budget decides where to stop
       break;
     case TargetKind::max_error_abs:
-      o.max_error_abs = lod.target.max_error;
+      o.max_error_abs = target.max_error;
       o.target_triangles = 1;
       break;
   }
@@ -862,8 +867,142 @@ std::optional<LodSpec> read_lod(const Json& v, const std::string& path, const Lo
   apply_fields(v, path, option_fields(), lod.options, problems);
   if (!target) return std::nullopt;
   lod.target = *target;
-  set_source_target(lod);
+  set_source_target(lod.options.simplify, lod.target);
   return lod;
+}
+
+// --- conservative LODs (collision, occluder) --------------------------------------------------------------
+
+// A collision entry with a volume budget and no target: as few triangles as that budget allows.
+LodTarget volume_only_target() {
+  LodTarget t;
+  t.kind = TargetKind::triangles;
+  t.triangles = 1;
+  return t;
+}
+
+constexpr std::string_view kConservativeTargetKeys[] = {"ratio", "triangles", "max_error"};
+
+// The options a collision or occluder entry may override: every LOD option but the two the entry itself sets.
+const std::vector<Field<LodOptions>>& conservative_option_fields() {
+  static const std::vector<Field<LodOptions>> fields = [] {
+    std::vector<Field<LodOptions>> out;
+    for (const Field<LodOptions>& f : option_fields()) {
+      if (f.key != "conservative" && f.key != "max_volume_growth") out.push_back(f);
+    }
+    return out;
+  }();
+  return fields;
+}
+
+// Keys check_keys lets through; screen_size, from and an occluder's max_volume_growth get their own message.
+std::vector<std::string_view> conservative_keys() {
+  std::vector<std::string_view> keys(std::begin(kConservativeTargetKeys), std::end(kConservativeTargetKeys));
+  keys.push_back("max_volume_growth");
+  keys.push_back("from");
+  keys.push_back("screen_size");
+  append_keys(keys, conservative_option_fields());
+  return keys;
+}
+
+std::optional<ConservativeSpec> read_conservative(const Json& v, const std::string& path, ConservativeKind kind,
+                                                  const LodOptions& inherited, Problems& problems) {
+  if (!expect_object(v, path, problems)) return std::nullopt;
+  check_keys(v, path, conservative_keys(), problems);
+  const bool collision = kind == ConservativeKind::collision;
+  ConservativeSpec spec;
+  spec.kind = kind;
+  spec.options = inherited;
+  bool ok = true;
+  apply_fields(v, path, conservative_option_fields(), spec.options, problems);
+  if (const Json* from = find(v, "from")) {
+    const auto x = read_enum<LodFrom>(*from, child(path, "from"), kFromNames, problems);
+    if (x && *x != LodFrom::source) {
+      problems.add(child(path, "from"), "a collision or occluder LOD is always built from the source");
+    }
+  }
+  if (find(v, "screen_size")) {
+    problems.add(child(path, "screen_size"),
+                 "a collision or occluder LOD is never drawn, so it has no screen size; give ratio, triangles or "
+                 "max_error");
+    ok = false;
+  }
+  const Json* growth = find(v, "max_volume_growth");
+  if (growth && !collision) {
+    problems.add(child(path, "max_volume_growth"),
+                 "applies to collision LODs only (an occluder loses volume; bound it with its target)");
+    ok = false;
+  } else if (growth) {
+    const auto x = read_number(*growth, child(path, "max_volume_growth"), at_least(0), problems);
+    ok = ok && x.has_value();
+    spec.max_volume_growth_pct = x.value_or(-1);
+  }
+  const bool has_target = std::any_of(std::begin(kConservativeTargetKeys), std::end(kConservativeTargetKeys),
+                                      [&](std::string_view k) { return find(v, k) != nullptr; });
+  if (has_target && ok) {
+    spec.target = read_target(v, path, problems);
+    ok = spec.target.has_value();
+  } else if (!has_target && !(collision && growth) && !find(v, "screen_size")) {
+    problems.add(path, collision ? "needs a target: one of ratio, triangles, max_error, or a max_volume_growth"
+                                 : "needs a target: one of ratio, triangles, max_error");
+    ok = false;
+  }
+  const Engine engine = spec.options.simplify.engine;
+  if (engine != Engine::edge_collapse && engine != Engine::multiple_choice) {
+    const std::string name(enum_name<Engine>(kEngineNames, engine));
+    if (find(v, "engine")) {
+      problems.add(child(path, "engine"), "a collision or occluder LOD needs a triangle engine: \"edge_collapse\" "
+                                          "or \"multiple_choice\", got \"" + name + "\"");
+    } else {
+      problems.add(path, "inherits engine \"" + name + "\", which cannot build collision or occluder LODs; set "
+                         "\"engine\" here to \"edge_collapse\" or \"multiple_choice\"");
+    }
+    ok = false;
+  }
+  if (!ok) return std::nullopt;
+  SimplifyOptions& o = spec.options.simplify;
+  o.conservative = collision ? Conservative::bounding : Conservative::occluder;
+  o.max_volume_growth = spec.max_volume_growth_pct >= 0 ? spec.max_volume_growth_pct / 100.0 : -1.0;
+  if (spec.target) {
+    set_source_target(o, *spec.target);
+  } else {
+    set_source_target(o, volume_only_target());  // the volume budget decides
+  }
+  return spec;
+}
+
+constexpr ConservativeKind kConservativeKinds[] = {ConservativeKind::collision, ConservativeKind::occluder};
+
+// defaults.collision / defaults.occluder: checked against the defaults' options, kept as text for the classes.
+void read_default_conservative(const Json& defaults, BatchConfig& config, Problems& problems) {
+  for (const ConservativeKind kind : kConservativeKinds) {
+    const std::string key = conservative_kind_name(kind);
+    const Json* v = find(defaults, key);
+    if (!v || v->is_null()) continue;
+    if (read_conservative(*v, child("defaults", key), kind, config.defaults, problems)) {
+      (kind == ConservativeKind::collision ? config.default_collision : config.default_occluder) = dump(*v);
+    }
+  }
+}
+
+// A class's own entries (null: none, whatever defaults says), else the defaults' read against its options.
+void read_class_conservative(const Json& v, const std::string& path, const BatchConfig& config, AssetClass& cls,
+                             Problems& problems) {
+  for (const ConservativeKind kind : kConservativeKinds) {
+    const std::string key = conservative_kind_name(kind);
+    std::optional<ConservativeSpec> spec;
+    if (const Json* own = find(v, key)) {
+      if (own->is_null()) continue;
+      spec = read_conservative(*own, child(path, key), kind, cls.options, problems);
+    } else {
+      const std::string& text = kind == ConservativeKind::collision ? config.default_collision : config.default_occluder;
+      if (text.empty()) continue;
+      Problems inherited;
+      spec = read_conservative(Json::parse(text), child("defaults", key), kind, cls.options, inherited);
+      for (const std::string& line : inherited.take()) problems.add(path, "with this class's options, " + line);
+    }
+    if (spec) cls.conservative.push_back(std::move(*spec));
+  }
 }
 
 void read_match(const Json& v, const std::string& path, AssetClass& cls, Problems& problems) {
@@ -896,8 +1035,9 @@ void read_lods(const Json& v, const std::string& path, AssetClass& cls, Problems
   }
 }
 
-std::optional<AssetClass> read_class(const Json& v, const std::string& path, const LodOptions& defaults,
+std::optional<AssetClass> read_class(const Json& v, const std::string& path, const BatchConfig& config,
                                      Problems& problems) {
+  const LodOptions& defaults = config.defaults;
   if (!expect_object(v, path, problems)) return std::nullopt;
   check_keys(v, path, kClassKeys, problems);
   AssetClass cls;
@@ -932,6 +1072,7 @@ std::optional<AssetClass> read_class(const Json& v, const std::string& path, con
   } else {
     problems.add(child(path, "lods"), "missing (required)");
   }
+  read_class_conservative(v, path, config, cls, problems);
   return cls;
 }
 
@@ -941,7 +1082,7 @@ void read_classes(const Json& v, BatchConfig& config, Problems& problems) {
   std::map<std::string, std::size_t> first_index;
   for (std::size_t i = 0; i < v.size(); ++i) {
     const std::string path = child("classes", i);
-    auto cls = read_class(v[i], path, config.defaults, problems);
+    auto cls = read_class(v[i], path, config, problems);
     if (!cls) continue;
     if (!cls->name.empty()) {
       const auto [it, inserted] = first_index.emplace(cls->name, i);
@@ -986,6 +1127,7 @@ BatchConfig read_document(const Json& doc, Problems& problems) {
         check_keys(*sw, "defaults.lod_switch", keys, problems);
         apply_fields(*sw, "defaults.lod_switch", lod_switch_fields(), config.lod_switch, problems);
       }
+      read_default_conservative(*defaults, config, problems);
     }
   }
   if (const Json* classes = find(doc, "classes")) {
@@ -1140,6 +1282,12 @@ Json class_json(const AssetClass& cls) {
     lods.push_back(std::move(j));
   }
   out["lods"] = std::move(lods);
+  for (const ConservativeSpec& spec : cls.conservative) {
+    Json j = write_fields(conservative_option_fields(), spec.options);
+    if (spec.target) j.update(target_json(*spec.target));
+    if (spec.max_volume_growth_pct >= 0) j["max_volume_growth"] = spec.max_volume_growth_pct;
+    out[conservative_kind_name(spec.kind)] = std::move(j);
+  }
   return out;
 }
 
@@ -1147,6 +1295,10 @@ Json class_json(const AssetClass& cls) {
 
 ConfigError::ConfigError(std::string source, std::vector<std::string> problems)
     : std::runtime_error(join_problems(source, problems)), source_(std::move(source)), problems_(std::move(problems)) {}
+
+const char* conservative_kind_name(ConservativeKind kind) {
+  return kind == ConservativeKind::collision ? "collision" : "occluder";
+}
 
 const char* target_kind_name(TargetKind kind) {
   switch (kind) {
@@ -1218,11 +1370,19 @@ nlohmann::json effective_config_json(const BatchConfig& config) {
   defaults.update(write_fields(limit_fields(), config.limits));
   defaults.update(write_fields(report_fields(), config.report));
   defaults["lod_switch"] = write_fields(lod_switch_fields(), config.lod_switch);
+  if (!config.default_collision.empty()) defaults["collision"] = Json::parse(config.default_collision);
+  if (!config.default_occluder.empty()) defaults["occluder"] = Json::parse(config.default_occluder);
   Json out = {{"version", config.version}, {"defaults", std::move(defaults)}};
   if (!config.description.empty()) out["description"] = config.description;
   if (!config.default_class.empty()) out["default_class"] = config.default_class;
   Json classes = Json::array();
-  for (const AssetClass& cls : config.classes) classes.push_back(class_json(cls));
+  for (const AssetClass& cls : config.classes) {
+    Json j = class_json(cls);
+    // A class that declined the defaults' entry says so, so that the document parses back to the same config.
+    if (!config.default_collision.empty() && !j.contains("collision")) j["collision"] = nullptr;
+    if (!config.default_occluder.empty() && !j.contains("occluder")) j["occluder"] = nullptr;
+    classes.push_back(std::move(j));
+  }
   out["classes"] = std::move(classes);
   return out;
 }
@@ -1285,6 +1445,15 @@ SimplifyOptions simplify_options_for(const LodSpec& lod, const LodInput& input) 
       break;
   }
   return o;
+}
+
+SimplifyOptions simplify_options_for(const ConservativeSpec& spec, const LodInput& input) {
+  LodSpec lod{.target = spec.target.value_or(volume_only_target()),
+              .from = LodFrom::source,
+              .options = spec.options};
+  return simplify_options_for(lod, LodInput{.source_triangles = input.source_triangles,
+                                            .source_diagonal = input.source_diagonal,
+                                            .accumulated_error_abs = 0});
 }
 
 }  // namespace lodforge::batch

@@ -70,6 +70,26 @@ constexpr Field kLodFields[] = {{"level", Kind::integer},
                                 {"seconds", Kind::number},
                                 {"screen_coverage", Kind::number_or_null}};
 
+// assets[].conservative_lods[], when present (assets of classes with collision or occluder LODs).
+constexpr Field kConservativeFields[] = {{"kind", Kind::string},
+                                         {"mode", Kind::string},
+                                         {"target", Kind::object},
+                                         {"target_triangles", Kind::integer_or_null},
+                                         {"max_volume_growth_pct", Kind::number_or_null},
+                                         {"triangles", Kind::integer},
+                                         {"vertices", Kind::integer},
+                                         {"ratio", Kind::number},
+                                         {"error_bound_abs", Kind::number},
+                                         {"error_bound_rel", Kind::number},
+                                         {"budget", Kind::object},
+                                         {"mean_rel", Kind::number},
+                                         {"rms_rel", Kind::number},
+                                         {"hausdorff_rel", Kind::number},
+                                         {"volume_change_pct", Kind::number_or_null},
+                                         {"collapses_refused", Kind::integer},
+                                         {"stop_reason", Kind::string},
+                                         {"gltf_node_suffix", Kind::string_or_null}};
+
 bool has_kind(const Json& v, Kind kind) {
   switch (kind) {
     case Kind::string:
@@ -146,7 +166,7 @@ void strip_seconds(Json& j) {
 
 Json report_summary(const Json& assets, double seconds) {
   std::uint64_t ok = 0, failed = 0, skipped = 0, not_started = 0, hits = 0, lods = 0, in_tris = 0, out_tris = 0,
-                missed = 0;
+                missed = 0, conservative = 0, conservative_missed = 0;
   for (const Json& a : assets) {
     const std::string status = a.value("status", std::string());
     if (status == "ok") {
@@ -160,6 +180,14 @@ Json report_summary(const Json& assets, double seconds) {
           missed += b != l.end() && b->is_object() && b->value("status", std::string()) == "missed";
         }
       }
+      // Collision and occluder LODs are no render level: counted apart, and not in output_triangles.
+      if (const auto it = a.find("conservative_lods"); it != a.end() && it->is_array()) {
+        conservative += it->size();
+        for (const Json& l : *it) {
+          const auto b = l.find("budget");
+          conservative_missed += b != l.end() && b->is_object() && b->value("status", std::string()) == "missed";
+        }
+      }
     } else if (status == "failed") {
       ++failed;
     } else if (status == "not_started") {
@@ -169,9 +197,14 @@ Json report_summary(const Json& assets, double seconds) {
     }
     if (a.value("cache_hit", false)) ++hits;
   }
-  return {{"assets", assets.size()}, {"succeeded", ok}, {"failed", failed},           {"skipped", skipped},
-          {"cache_hits", hits},      {"lods", lods},    {"input_triangles", in_tris}, {"output_triangles", out_tris},
-          {"seconds", seconds},      {"lods_missed", missed},   {"not_started", not_started}};
+  Json summary = {{"assets", assets.size()}, {"succeeded", ok}, {"failed", failed},           {"skipped", skipped},
+                  {"cache_hits", hits},      {"lods", lods},    {"input_triangles", in_tris}, {"output_triangles", out_tris},
+                  {"seconds", seconds},      {"lods_missed", missed},   {"not_started", not_started}};
+  if (conservative > 0) {
+    summary["conservative_lods"] = conservative;
+    summary["conservative_lods_missed"] = conservative_missed;
+  }
+  return summary;
 }
 
 std::vector<std::string> check_report(const Json& report) {
@@ -218,6 +251,21 @@ std::vector<std::string> check_report(const Json& report) {
     if (!a.contains("outputs") || !a["outputs"].is_array() ||
         !std::all_of(a["outputs"].begin(), a["outputs"].end(), [](const Json& o) { return o.is_string(); })) {
       out.push_back(where + ".outputs: expected an array of strings");
+    }
+    if (a.contains("conservative_lods")) {
+      if (!a["conservative_lods"].is_array()) {
+        out.push_back(where + ".conservative_lods: expected an array");
+      } else {
+        for (std::size_t k = 0; k < a["conservative_lods"].size(); ++k) {
+          const Json& l = a["conservative_lods"][k];
+          const std::string lw = where + ".conservative_lods[" + std::to_string(k) + "]";
+          check_fields(l, kConservativeFields, lw, out);
+          if (!l.is_object()) continue;
+          const std::string kind = l.value("kind", std::string());
+          if (kind != "collision" && kind != "occluder") out.push_back(lw + ".kind: expected collision or occluder");
+          if (!l.contains("outputs") || !l["outputs"].is_array()) out.push_back(lw + ".outputs: expected an array");
+        }
+      }
     }
     if (!a.contains("lods") || !a["lods"].is_array()) {
       out.push_back(where + ".lods: expected an array");

@@ -255,6 +255,18 @@ struct Lod {
   bool missed() const { return budget && budget->starts_with("missed"); }
 };
 
+// A collision or occluder LOD (report.json "conservative_lods"): an output beside the chain, shown in its own table.
+struct Separate {
+  std::optional<std::string> kind;    // "collision" | "occluder"
+  std::optional<std::string> target;  // "ratio 0.1"
+  std::optional<double> triangles;
+  std::optional<double> hausdorff_rel;
+  std::optional<double> volume_change_pct;
+  std::optional<std::string> budget;  // "met", or "missed: " and the reasons
+  std::string where;                  // its files, or its glTF node suffix
+  bool missed() const { return budget && budget->starts_with("missed"); }
+};
+
 struct Asset {
   std::optional<std::string> path;
   std::optional<std::string> class_name;  // absent: no class matched
@@ -263,18 +275,57 @@ struct Asset {
   std::optional<bool> cache_hit;
   std::optional<double> seconds;
   std::vector<Lod> lods;
+  std::vector<Separate> separate;
   std::optional<double> max_hausdorff_rel;  // over the LODs: the asset's worst measured error
   std::optional<double> input_triangles;
   std::optional<double> input_bytes;   // the source's mesh data on disk
   std::optional<double> output_bytes;  // everything written for the asset
   std::size_t pictures = 0;            // LOD pictures beside the report, source first (picture_file_name)
   bool missed() const {
-    return std::any_of(lods.begin(), lods.end(), [](const Lod& l) { return l.missed(); });
+    return std::any_of(lods.begin(), lods.end(), [](const Lod& l) { return l.missed(); }) ||
+           std::any_of(separate.begin(), separate.end(), [](const Separate& l) { return l.missed(); });
   }
 
   bool failed() const { return status == "failed"; }
   std::string_view path_or_empty() const { return path ? std::string_view(*path) : std::string_view(); }
 };
+
+// "met", or "missed: " and the reasons, from a record's "budget".
+std::optional<std::string> budget_text(const json& budget) {
+  const std::optional<std::string> status = text(budget, "status");
+  if (!status) return std::nullopt;
+  std::string b = *status;
+  const json& reasons = member(budget, "reasons");
+  if (reasons.is_array()) {
+    for (const json& r : reasons) {
+      if (r.is_string()) b += (b == *status ? ": " : "; ") + r.get<std::string>();
+    }
+  }
+  return b;
+}
+
+Separate read_separate(const json& j) {
+  Separate c;
+  c.kind = text(j, "kind");
+  const json& target = member(j, "target");
+  const std::optional<std::string> kind = text(target, "kind");
+  const std::optional<double> value = number(target, "value");
+  if (kind || value) c.target = kind.value_or(std::string(kDash)) + ' ' + (value ? compact(*value) : std::string(kDash));
+  c.triangles = number(j, "triangles");
+  c.hausdorff_rel = number(j, "hausdorff_rel");
+  c.volume_change_pct = number(j, "volume_change_pct");
+  c.budget = budget_text(member(j, "budget"));
+  const json& outputs = member(j, "outputs");
+  if (outputs.is_array()) {
+    for (const json& o : outputs) {
+      if (o.is_string()) c.where += (c.where.empty() ? "" : ", ") + o.get<std::string>();
+    }
+  }
+  if (const std::optional<std::string> suffix = text(j, "gltf_node_suffix")) {
+    c.where += (c.where.empty() ? "" : "; ") + std::string("glTF nodes *") + *suffix;
+  }
+  return c;
+}
 
 Lod read_lod(const json& j) {
   Lod lod;
@@ -297,17 +348,7 @@ Lod read_lod(const json& j) {
   lod.stop_reason = text(j, "stop_reason");
   lod.seconds = number(j, "seconds");
   lod.screen_coverage = number(j, "screen_coverage");
-  const json& budget = member(j, "budget");
-  if (const std::optional<std::string> status = text(budget, "status")) {
-    std::string b = *status;
-    const json& reasons = member(budget, "reasons");
-    if (reasons.is_array()) {
-      for (const json& r : reasons) {
-        if (r.is_string()) b += (b == *status ? ": " : "; ") + r.get<std::string>();
-      }
-    }
-    lod.budget = std::move(b);
-  }
+  lod.budget = budget_text(member(j, "budget"));
   return lod;
 }
 
@@ -336,6 +377,11 @@ std::vector<Asset> read_assets(const json& report) {
         ++a.pictures;
       }
       if (a.pictures < pictures.size()) a.pictures = 0;
+    }
+    if (const json& separate = member(j, "conservative_lods"); separate.is_array()) {
+      for (const json& c : separate) {
+        if (c.is_object()) a.separate.push_back(read_separate(c));
+      }
     }
     const json& lods = member(j, "lods");
     if (lods.is_array()) {
@@ -567,6 +613,41 @@ void render_data(std::string& out, const std::vector<const Asset*>& order) {
     append_json_string(out, *order[k]->error);
   }
   out += "},\n";
+  // Collision and occluder LODs, sparse too: [kind, target, triangles, Hausdorff %, volume change %, budget met,
+  // reasons, where] per entry.
+  out += "\"cons\":{";
+  first = true;
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    if (order[k]->separate.empty()) continue;
+    out += first ? "" : ",";
+    first = false;
+    out += '"' + std::to_string(k) + "\":[";
+    for (std::size_t e = 0; e < order[k]->separate.size(); ++e) {
+      const Separate& c = order[k]->separate[e];
+      out += e ? ",[" : "[";
+      append_json_string(out, c.kind.value_or(std::string(kDash)));
+      out += ',';
+      append_json_string(out, c.target.value_or(std::string(kDash)));
+      out += ',';
+      append_number(out, c.triangles);
+      out += ',';
+      append_number(out, percent_of(c.hausdorff_rel));
+      out += ',';
+      append_number(out, c.volume_change_pct);
+      out += !c.budget ? ",null," : c.missed() ? ",0," : ",1,";
+      const std::size_t colon = c.budget ? c.budget->find(": ") : std::string::npos;
+      if (colon == std::string::npos) {
+        out += "null";
+      } else {
+        append_json_string(out, c.budget->substr(colon + 2));
+      }
+      out += ',';
+      append_json_string(out, c.where);
+      out += ']';
+    }
+    out += ']';
+  }
+  out += "},\n";
   column(out, "lv", lods, [](std::string& o, const Flat& f) {
     append_number(o, f.lod->level ? std::optional<double>(static_cast<double>(*f.lod->level)) : std::nullopt);
   });
@@ -664,8 +745,9 @@ tr.missed td { background: #fff6e5; }
 tr.expanded > td { background: #fafbfc; }
 button.toggle { border: 0; background: none; cursor: pointer; font-size: 13px; padding: 0 4px; }
 .detail { display: flex; gap: 16px; align-items: flex-start; flex-wrap: wrap; }
-table.lods th { position: static; cursor: default; }
-table.lods th::after { content: none; }
+table.lods th, table.separate th { position: static; cursor: default; }
+table.lods th::after, table.separate th::after { content: none; }
+table.separate { margin-top: 8px; }
 svg.chain { background: #fff; border: 1px solid var(--line); }
 svg.chain polyline { fill: none; stroke-width: 1.5; }
 svg.chain polyline.haus { stroke: #e15759; }
@@ -702,6 +784,7 @@ constexpr std::string_view kScript = R"js(
       if (D.h[k] !== null && !(D.h[k] <= w)) w = D.h[k];
       if (D.bud[k] === 0) m++;
     }
+    if (D.cons[i]) D.cons[i].forEach(function (c) { if (c[5] === 0) m++; });
     worst[i] = w; missed[i] = m;
     low[i] = path(i).toLowerCase();
   }
@@ -758,7 +841,8 @@ constexpr std::string_view kScript = R"js(
       function (a) { return num(worst[a], 4); }, "num"],
     ["budget", function (a) { return D.nl[a] ? missed[a] : null; }, function (a) {
       if (!D.nl[a]) return DASH;
-      return missed[a] ? '<span class="st-failed">missed ' + missed[a] + "/" + D.nl[a] + "</span>" : "met";
+      var all = D.nl[a] + (D.cons[a] ? D.cons[a].length : 0);
+      return missed[a] ? '<span class="st-failed">missed ' + missed[a] + "/" + all + "</span>" : "met";
     }, ""],
     ["screen coverage", function (a) { return D.nl[a] ? D.sc[off[a]] : null; }, coverage, "num"],
     ["input size", function (a) { return D.ib[a]; }, function (a) { return bytes(D.ib[a]); }, "num"],
@@ -873,8 +957,22 @@ constexpr std::string_view kScript = R"js(
         '</td><td class="num">' + num(D.h[k], 4) + '</td><td class="num">' + num(D.sc[k], 4) +
         "</td><td>" + (D.stop[k] < 0 ? DASH : esc(D.stops[D.stop[k]])) + "</td><td>" + bud + "</td></tr>";
     }
-    return '<div class="detail">' + plot(a) + s + "</tbody></table></div>" +
+    return '<div class="detail">' + plot(a) + s + "</tbody></table></div>" + separate(a) +
       (D.pic[a] ? '<div class="pics" data-pics="' + a + '"></div>' : "");
+  }
+  // Collision and occluder LODs: separate outputs, no render level, so a table of their own.
+  function separate(a) {
+    if (!D.cons[a]) return "";
+    var s = '<table class="separate"><thead><tr><th>separate LOD</th><th>target</th><th>triangles</th>' +
+      "<th>Hausdorff %</th><th>volume change %</th><th>budget</th><th>output</th></tr></thead><tbody>";
+    D.cons[a].forEach(function (c) {
+      var bud = c[5] === null ? DASH : c[5] ? "met" : '<span class="st-failed">missed</span>';
+      if (c[6] !== null) bud += ": " + esc(c[6]);
+      s += "<tr><td>" + esc(c[0]) + "</td><td>" + esc(c[1]) + '</td><td class="num">' + count(c[2]) +
+        '</td><td class="num">' + num(c[3], 4) + '</td><td class="num">' + num(c[4], 2) + "</td><td>" + bud +
+        "</td><td>" + esc(c[7]) + "</td></tr>";
+    });
+    return s + "</tbody></table>";
   }
   // The LOD pictures beside the report (report_files/<asset path>/lodK.png), made as elements rather than markup
   // so that every URL goes through encodeURIComponent; loaded lazily, when the row is open and in view.
@@ -1070,6 +1168,11 @@ void render_header(std::string& out, const json& report) {
   figure(out, "LODs", count_or_dash(number(s, "lods")));
   const std::optional<double> missed = number(s, "lods_missed");
   figure(out, "LODs missed budget", count_or_dash(missed), missed && *missed > 0);
+  if (const std::optional<double> n = number(s, "conservative_lods")) {  // only runs that built any
+    const std::optional<double> n_missed = number(s, "conservative_lods_missed");
+    figure(out, "collision/occluder LODs", count_or_dash(n));
+    figure(out, "of those missed budget", count_or_dash(n_missed), n_missed && *n_missed > 0);
+  }
   figure(out, "input triangles", count_or_dash(in));
   figure(out, "output triangles", count_or_dash(kept));
   figure(out, "output / input", in && kept && *in > 0 ? fixed(*kept / *in, 4) : std::string(kDash));

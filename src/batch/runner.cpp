@@ -49,7 +49,9 @@
 #include "lodforge/batch/lods_manifest.hpp"
 #include "lodforge/batch/post_process.hpp"
 #include "lodforge/batch/report.hpp"
+#include "lodforge/core/topology.hpp"
 #include "lodforge/core/validate.hpp"
+#include "lodforge/core/volume.hpp"
 #include "lodforge/eval/attribute_eval.hpp"
 #include "lodforge/eval/distance_bound.hpp"
 #include "lodforge/eval/eval.hpp"
@@ -142,6 +144,7 @@ struct MeshLod {
   std::vector<std::string> floors{};  // SimplifyResult::floors: what held a missed target
   SeamStage seam_stage = SeamStage::strict;
   double seconds = 0;
+  std::size_t conservative_refused = 0;  // conservative LODs: collapses the nesting rule refused
 };
 using MeshChain = std::vector<MeshLod>;
 
@@ -296,6 +299,47 @@ MeshChain build_chain(const Mesh& source, const AssetClass& cls, std::size_t ass
   return chain;
 }
 
+// One mesh's collision and occluder LODs (the class's `conservative` entries, in order), each built from the
+// source. Targets are shared among the asset's meshes as in build_chain. A failure names the entry.
+std::vector<MeshLod> build_conservative(const Mesh& source, const AssetClass& cls, std::size_t asset_triangles,
+                                        double asset_diagonal, unsigned jobs, const StopRequest& stop) {
+  std::vector<MeshLod> out;
+  const std::size_t source_triangles = source.triangle_count();
+  for (ConservativeSpec spec : cls.conservative) {
+    if (stop.requested()) throw TimedOut{};
+    if (spec.target && spec.target->kind == TargetKind::triangles && asset_triangles > 0) {
+      const double share = static_cast<double>(spec.target->triangles) * static_cast<double>(source_triangles) /
+                           static_cast<double>(asset_triangles);
+      spec.target->triangles = std::max<std::size_t>(1, static_cast<std::size_t>(std::llround(share)));
+    }
+    SimplifyOptions options = simplify_options_for(
+        spec, LodInput{.source_triangles = source_triangles, .source_diagonal = asset_diagonal,
+                       .accumulated_error_abs = 0});
+    options.threads = threads_for(source_triangles, jobs);
+    options.stop = stop;
+    const auto t0 = Clock::now();
+    std::optional<SimplifyResult> r;
+    try {
+      r.emplace(simplify_maybe_tiled(source, options));
+    } catch (const std::exception& e) {
+      throw std::runtime_error(std::string("the ") + conservative_kind_name(spec.kind) + " LOD: " + e.what());
+    }
+    if (r->stop_reason == StopReason::stopped) throw TimedOut{};
+    MeshLod lod;
+    lod.mesh = std::move(r->mesh);
+    lod.mesh.name = source.name;
+    lod.error_bound_abs = r->budget.verified ? r->budget.bound_abs : r->qem_error_abs;
+    lod.budget = r->budget;
+    lod.stop = r->stop_reason;
+    lod.floors = std::move(r->floors);
+    lod.seam_stage = r->seam_stage;
+    lod.seconds = seconds_since(t0);
+    lod.conservative_refused = r->vetoes[Veto::conservative];
+    out.push_back(std::move(lod));
+  }
+  return out;
+}
+
 // ---- jobs and admission ---------------------------------------------------------------------------------------
 
 double work_seconds(const StageSeconds& s) {
@@ -324,6 +368,8 @@ struct Job {
   std::vector<std::vector<Mesh>> levels;                 // [level][mesh], post-processed
   std::vector<double> coverage;                          // MSFT_screencoverage, levels + 1 values
   std::vector<bool> shows_previous;                      // per level: a near-copy of the one before, not stored
+  std::vector<std::vector<MeshLod>> conservative_built;  // [mesh][entry]: the class's collision/occluder LODs
+  std::vector<std::vector<Mesh>> conservative;           // [entry][mesh], post-processed for output
 
   // The report's pictures (PNG bytes, the source first, then each level). Only the picture branch touches
   // them, and only until both branches after post-process have arrived at gather.
@@ -651,6 +697,19 @@ class Pipeline {
         return build_chain(mesh, *job.cls, job.triangles, diagonal, jobs_, job.stop_request(), expire);
       }));
     }
+    if (job.cls->conservative.empty()) return;
+    for (std::size_t m = 0; m < job.asset.meshes.size(); ++m) {
+      const Mesh& mesh = job.asset.meshes[m];
+      if (mesh.triangle_count() == 0) {
+        MeshLod itself;  // e.g. a glTF mesh of lines only: its LODs are itself
+        itself.mesh = mesh;
+        job.conservative_built.emplace_back(job.cls->conservative.size(), itself);
+        continue;
+      }
+      const double diagonal = job.diagonal / io::world_scale(job.asset, m);
+      job.conservative_built.push_back(
+          build_conservative(mesh, *job.cls, job.triangles, diagonal, jobs_, job.stop_request()));
+    }
   }
 
   void post_process(Job& job) {
@@ -662,6 +721,13 @@ class Pipeline {
       for (const auto& chain : job.chains) {
         const Mesh& lod = (*chain)[k].mesh;
         job.levels[k].push_back(optimize ? optimize_for_gpu(lod) : lod);
+      }
+    }
+    job.conservative.assign(job.cls->conservative.size(), {});
+    for (std::size_t c = 0; c < job.conservative.size(); ++c) {
+      job.check_deadline();
+      for (const std::vector<MeshLod>& built : job.conservative_built) {
+        job.conservative[c].push_back(optimize ? optimize_for_gpu(built[c].mesh) : built[c].mesh);
       }
     }
     // LOD0 is written too (MSFT_lod files hold it; write_source_lod0 copies it), so it gets the same treatment.
@@ -787,6 +853,110 @@ class Pipeline {
       }
     }
     job.record["lods"] = std::move(lods);
+    if (!job.cls->conservative.empty()) job.record["conservative_lods"] = conservative_records(job, source, placed);
+  }
+
+  // report.json "conservative_lods": per collision/occluder entry what it asked and what it got, measured against
+  // the source in world space like the render LODs, plus the volume change where the source is closed.
+  Json conservative_records(Job& job, const Mesh& source, io::Asset& placed) const {
+    Json out = Json::array();
+    const bool closed = summarize_topology(source, build_topology(source)).closed_manifold();
+    const double source_volume = closed ? signed_volume(source) : 0.0;
+    const bool in_gltf = is_gltf(job.asset.format) && config_.output.gltf_lods != GltfLods::files;
+    for (std::size_t c = 0; c < job.cls->conservative.size(); ++c) {
+      job.check_deadline();
+      const ConservativeSpec& spec = job.cls->conservative[c];
+      std::size_t triangles = 0, vertices = 0, undone = 0, refused = 0;
+      double bound = 0, seconds = 0;
+      bool verified = true, met = true, certified = true;
+      std::set<std::string> stops;
+      std::vector<std::string> floors;
+      for (std::size_t m = 0; m < job.conservative[c].size(); ++m) {
+        triangles += job.conservative[c][m].triangle_count();
+        vertices += job.conservative[c][m].vertex_count();
+        if (job.asset.meshes[m].triangle_count() == 0) continue;
+        const MeshLod& built = job.conservative_built[m][c];
+        bound = std::max(bound, built.error_bound_abs * io::world_scale(job.asset, m));
+        seconds += built.seconds;
+        verified = verified && built.budget.verified;
+        met = met && built.budget.within;
+        certified = certified && built.budget.certified;
+        undone += built.budget.collapses_undone;
+        refused += built.conservative_refused;
+        stops.insert(stop_reason_name(built.stop));
+        for (const std::string& f : built.floors) {
+          if (std::find(floors.begin(), floors.end(), f) == floors.end()) floors.push_back(f);
+        }
+      }
+      std::string stop;
+      for (const std::string& s : stops) stop += (stop.empty() ? "" : ",") + s;
+      placed.meshes = job.conservative[c];
+      const Mesh lod = io::world_surface(placed);
+      const std::size_t larger = std::max(source.triangle_count(), lod.triangle_count());
+      EvalOptions eval;
+      eval.samples = std::clamp(kEvalSamplesPerTriangle * larger, kEvalSamplesMin, kEvalSamplesMax);
+      eval.threads = threads_for(larger, jobs_);
+      eval.stop = job.stop_request();
+      const EvalResult e = evaluate(source, lod, eval);
+      if (e.stopped) throw TimedOut{};
+      // Volume change in per cent of the source's (bounding LODs grow, occluders shrink); null for an open source.
+      const Json volume_change =
+          closed && source_volume > 0 ? Json(finite(100.0 * (signed_volume(lod) / source_volume - 1.0))) : Json(nullptr);
+
+      const bool collision = spec.kind == ConservativeKind::collision;
+      const Json target = spec.target ? target_json(*spec.target)
+                                      : Json{{"kind", "max_volume_growth"}, {"value", spec.max_volume_growth_pct}};
+      const Json target_triangles = spec.target ? target_triangles_json(*spec.target, job.triangles) : Json(nullptr);
+      Json reasons = Json::array();
+      std::string why_stopped;
+      for (const std::string& s : stops) {
+        if (s != "target_reached") why_stopped += (why_stopped.empty() ? "" : ", ") + s;
+      }
+      if (spec.target && spec.target->kind != TargetKind::ratio && spec.target->kind != TargetKind::triangles) {
+        if (!(verified && met)) reasons.push_back("error budget not met by measurement");
+      } else if (target_triangles.is_number() &&
+                 static_cast<double>(triangles) > std::ceil(1.02 * target_triangles.get<double>())) {
+        reasons.push_back("target not reached: " + std::to_string(triangles) + " triangles for " +
+                          std::to_string(target_triangles.get<std::size_t>()) +
+                          (why_stopped.empty() ? std::string() : " (stopped: " + why_stopped + ")") +
+                          (floors.empty() ? std::string() : "; floor: " + joined(floors)));
+      }
+      // The simplifier sums the volume exactly as it goes; the slack covers the written floats.
+      if (collision && spec.max_volume_growth_pct >= 0 && volume_change.is_number() &&
+          volume_change.get<double>() > spec.max_volume_growth_pct + 1e-6) {
+        char text[96];
+        std::snprintf(text, sizeof text, "volume grew by %.3f%% of the source's, over its budget of %g%%",
+                      volume_change.get<double>(), spec.max_volume_growth_pct);
+        reasons.push_back(text);
+      }
+      Json budget{{"status", reasons.empty() ? "met" : "missed"}, {"reasons", std::move(reasons)}};
+      if (spec.target && target_triangles.is_null()) budget["collapses_backed_off"] = undone;
+
+      const std::string kind = conservative_kind_name(spec.kind);
+      out.push_back({{"kind", kind},
+                     {"mode", collision ? "bounding" : "occluder"},
+                     {"target", target},
+                     {"target_triangles", target_triangles},
+                     {"max_volume_growth_pct", spec.max_volume_growth_pct >= 0 ? Json(spec.max_volume_growth_pct)
+                                                                               : Json(nullptr)},
+                     {"triangles", triangles},
+                     {"vertices", vertices},
+                     {"ratio", double(triangles) / double(job.triangles)},
+                     {"error_bound_abs", finite(bound)},
+                     {"error_bound_rel", finite(job.diagonal > 0 ? bound / job.diagonal : 0.0)},
+                     {"error_bound_kind", verified ? (certified ? "certified" : "measured") : "qem"},
+                     {"budget", std::move(budget)},
+                     {"mean_rel", finite(e.mean_rel())},
+                     {"rms_rel", finite(e.rms_rel())},
+                     {"hausdorff_rel", finite(e.hausdorff_rel())},
+                     {"volume_change_pct", volume_change},
+                     {"collapses_refused", refused},
+                     {"stop_reason", stop},
+                     {"seconds", seconds},
+                     {"outputs", Json::array()},
+                     {"gltf_node_suffix", in_gltf ? Json("_" + kind) : Json(nullptr)}});
+    }
+    return out;
   }
 
   void write(Job& job) {
@@ -796,6 +966,16 @@ class Pipeline {
       job.check_deadline();  // last moment to give up: once published, the asset is done
       job.record["output_bytes"] = tree_bytes(staging);
       job.record["outputs"] = cache_.publish(staging, fs::path(job.path).parent_path());
+      if (job.record.contains("conservative_lods")) {
+        for (Json& entry : job.record["conservative_lods"]) {
+          const ConservativeKind kind = entry["kind"] == "collision" ? ConservativeKind::collision
+                                                                     : ConservativeKind::occluder;
+          const std::string stem = fs::path(conservative_file_name(fs::path(job.path).filename(), kind)).stem().string();
+          for (const Json& o : job.record["outputs"]) {
+            if (fs::path(o.get<std::string>()).stem() == stem) entry["outputs"].push_back(o);
+          }
+        }
+      }
     } catch (...) {
       std::error_code ec;
       fs::remove_all(staging, ec);
@@ -906,13 +1086,23 @@ class Pipeline {
     const io::Format format = job.asset.format;
     const GltfLods mode = config_.output.gltf_lods;
     if (is_gltf(format) && mode != GltfLods::files) {
-      io::LodChain chain{.levels = job.levels, .screen_coverage = job.coverage, .shows_previous = job.shows_previous};
+      io::LodChain chain{
+          .levels = job.levels, .screen_coverage = job.coverage, .shows_previous = job.shows_previous, .separate = {}};
+      for (std::size_t c = 0; c < job.conservative.size(); ++c) {
+        chain.separate.push_back(
+            {.suffix = std::string("_") + conservative_kind_name(job.cls->conservative[c].kind),
+             .meshes = job.conservative[c]});
+      }
       io::save_gltf_lods(with_meshes(job.asset, job.sources), chain, staging / name);
     }
     if (!is_gltf(format) || mode != GltfLods::msft_lod) {
       for (std::size_t k = 0; k < job.levels.size(); ++k) {
         if (job.shows_previous[k]) continue;  // a near-copy of the level before: no duplicate file
         io::save_asset(with_meshes(job.asset, job.levels[k]), staging / lod_file_name(name, k + 1));
+      }
+      for (std::size_t c = 0; c < job.conservative.size(); ++c) {
+        io::save_asset(with_meshes(job.asset, job.conservative[c]),
+                       staging / conservative_file_name(name, job.cls->conservative[c].kind));
       }
     }
     if (config_.output.write_source_lod0) {
@@ -952,6 +1142,7 @@ void fail(Job& job, const std::string& error) {
   job.record["error"] = error.empty() ? "unknown error" : error;
   job.record["outputs"] = Json::array();
   job.record["lods"] = Json::array();
+  job.record.erase("conservative_lods");
   job.finished = true;
 }
 
@@ -1147,6 +1338,10 @@ bool pictures_pay(std::size_t input_triangles, std::size_t rendered_triangles, s
 
 std::string lod_file_name(const fs::path& relative_path, std::size_t level) {
   return relative_path.stem().string() + "_LOD" + std::to_string(level) + relative_path.extension().string();
+}
+
+std::string conservative_file_name(const fs::path& relative_path, ConservativeKind kind) {
+  return relative_path.stem().string() + "_" + conservative_kind_name(kind) + relative_path.extension().string();
 }
 
 LibraryScan scan_library(const fs::path& input_dir) {
@@ -1348,6 +1543,17 @@ Plan plan_batch(const BatchConfig& config, const RunOptions& options) {
       }
       a.class_name = cls->name;
       for (const LodSpec& l : cls->lods) a.lods.push_back(describe_target(l.target));
+      for (const ConservativeSpec& c : cls->conservative) {
+        std::string what = std::string(conservative_kind_name(c.kind)) + " " +
+                           (c.target ? describe_target(*c.target) : std::string("max_volume_growth"));
+        if (c.max_volume_growth_pct >= 0 && c.target) what += ", max_volume_growth";
+        if (c.max_volume_growth_pct >= 0) {
+          char pct[32];
+          std::snprintf(pct, sizeof pct, " %g%%", c.max_volume_growth_pct);
+          what += pct;
+        }
+        a.separate.push_back(what);
+      }
       if (options.force) {
         a.rebuild = true;
         a.reason = "--force";
@@ -1497,6 +1703,8 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
       job->chains.clear();
       job->sources.clear();
       job->levels.clear();
+      job->conservative_built.clear();
+      job->conservative.clear();
       if (footprint >= kTrimAfterFootprint) release_free_memory();
       if (options.on_asset_done) {
         try {

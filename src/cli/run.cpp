@@ -188,6 +188,11 @@ void print_summary(const batch::RunResult& r) {
   const unsigned long long missed = s.value("lods_missed", 0ull);
   std::printf("  %llu of %llu LOD(s) met their budget, %llu missed%s\n", s["lods"].get<unsigned long long>() - missed,
               s["lods"].get<unsigned long long>(), missed, missed > 0 ? " (report.json: lods[].budget.reasons)" : "");
+  if (s.contains("conservative_lods")) {
+    const unsigned long long n = s.value("conservative_lods", 0ull), c_missed = s.value("conservative_lods_missed", 0ull);
+    std::printf("  %llu of %llu collision/occluder LOD(s) met their budget, %llu missed%s\n", n - c_missed, n, c_missed,
+                c_missed > 0 ? " (report.json: conservative_lods[].budget.reasons)" : "");
+  }
 }
 
 // One line for the files of no supported format: a count per extension and the first few names.
@@ -220,6 +225,7 @@ void print_plan(const batch::Plan& plan) {
     for (std::size_t k = 0; k < a.lods.size(); ++k) {
       lods += (k ? ", " : "") + std::string("LOD") + std::to_string(k + 1) + " " + a.lods[k];
     }
+    for (const std::string& c : a.separate) lods += "; " + c;
     a.rebuild ? ++rebuild : ++fresh;
     std::printf("%s: class %s; %s; %s\n", a.path.c_str(), a.class_name.c_str(), lods.c_str(),
                 a.rebuild ? ("rebuild (" + a.reason + ")").c_str() : "up to date");
@@ -338,7 +344,10 @@ void run_command(const RunArgs& a) {
     for (const std::string& f : r.failures) std::fprintf(stderr, "  %s\n", f.c_str());
     set_exit_code(1);
   }
-  if (a.strict && r.report["summary"].value("lods_missed", 0ull) > 0) set_exit_code(1);
+  if (a.strict && (r.report["summary"].value("lods_missed", 0ull) > 0 ||
+                   r.report["summary"].value("conservative_lods_missed", 0ull) > 0)) {
+    set_exit_code(1);
+  }
   if (r.cancelled && g_cancel) {
     std::fprintf(stderr, "interrupted: %zu asset(s) not started; run again to resume\n", r.not_started);
     set_exit_code(kExitInterrupted);
@@ -407,7 +416,9 @@ void register_run(CLI::App& app) {
       "Build the LOD chains of every asset of a library as a config says (incremental, parallel).\n"
       "Writes OUT_DIR/<same folders>/..., OUT_DIR/report.json and report.html, OUT_DIR/lods.json (per asset and\n"
       "LOD: file, triangles, error, switch points for Unreal, Unity and Godot; docs/lods-json.md),\n"
-      "OUT_DIR/report_files/ (a picture of each LOD for report.html; --report-pictures), OUT_DIR/.lodforge-cache/.");
+      "OUT_DIR/report_files/ (a picture of each LOD for report.html; --report-pictures), OUT_DIR/.lodforge-cache/.\n"
+      "Classes with `collision` / `occluder` entries also get those LODs as separate outputs: <name>_collision.<ext>,\n"
+      "<name>_occluder.<ext>, or nodes <node>_collision outside MSFT_lod in a glTF (docs/conservative.md).");
   cmd->add_option("--config", a->config, "batch config (JSON; see configs/schema.json)")->required();
   cmd->add_option("--input", a->input, "library folder (searched recursively)")->required();
   cmd->add_option("--output", a->output, "output folder (created)")->required();
@@ -423,7 +434,7 @@ void register_run(CLI::App& app) {
                 "only reported");
   cmd->add_flag("--strict", a->strict,
                 "exit 1 when any LOD misses its budget (target not reached, error budget not met, or not 10% "
-                "smaller than the level before)");
+                "smaller than the level before), collision and occluder LODs included (volume budget exceeded)");
   cmd->add_option("--memory-limit", a->memory_limit,
                   "memory the run stays under, e.g. 4G or 512M (default: half the RAM); assets start only while "
                   "their estimated memory fits");

@@ -862,6 +862,28 @@ void add_lods(const Asset& asset, const LodChain& lods, const std::vector<int>& 
               DataBuilder& data, const std::filesystem::path& path) {
   const GltfDocument* source = asset.gltf.get();
   OrderedJson& meshes = doc["meshes"];
+  // A new glTF mesh showing `lod` in place of asset mesh m, named with `suffix`; returns its index.
+  auto add_mesh = [&](const Mesh& lod, std::size_t m, const std::string& suffix, const std::string& what) {
+    const OrderedJson& base = meshes[static_cast<std::size_t>(json_mesh[m])];
+    OrderedJson jmesh = OrderedJson::object();
+    if (base.contains("name") && base["name"].is_string()) jmesh["name"] = base["name"].get<std::string>() + suffix;
+    if (source) {
+      const OrderedJson& old = json_array(json_array(source->json, "meshes")[m], "primitives");
+      jmesh["primitives"] = write_primitives(lod, *source, m, old, doc, data, path);
+    } else {
+      jmesh["primitives"] = built_primitives(lod, m, doc["materials"], data, path);
+      if (jmesh["primitives"].empty()) {
+        throw IoError(path, what + " of mesh " + std::to_string(m) + " has no faces; a glTF mesh needs at least one "
+                                   "primitive");
+      }
+    }
+    if (base.contains("weights")) jmesh["weights"] = base["weights"];
+    set_morph_weights(jmesh, lod);
+    if (base.contains("extras") && !lod.morph_targets.empty()) jmesh["extras"] = base["extras"];
+    const int index = static_cast<int>(meshes.size());
+    meshes.push_back(std::move(jmesh));
+    return index;
+  };
   // lod_mesh[k][m]: glTF mesh index of LOD k+1 of asset mesh m.
   std::vector<std::vector<int>> lod_mesh(lods.levels.size(), std::vector<int>(asset.meshes.size(), -1));
   for (std::size_t k = 0; k < lods.levels.size(); ++k) {
@@ -871,26 +893,15 @@ void add_lods(const Asset& asset, const LodChain& lods, const std::vector<int>& 
         lod_mesh[k][m] = k == 0 ? json_mesh[m] : lod_mesh[k - 1][m];
         continue;
       }
-      const Mesh& lod = lods.levels[k][m];
-      const OrderedJson& base = meshes[static_cast<std::size_t>(json_mesh[m])];
-      OrderedJson jmesh = OrderedJson::object();
-      const std::string suffix = "_LOD" + std::to_string(k + 1);
-      if (base.contains("name") && base["name"].is_string()) jmesh["name"] = base["name"].get<std::string>() + suffix;
-      if (source) {
-        const OrderedJson& old = json_array(json_array(source->json, "meshes")[m], "primitives");
-        jmesh["primitives"] = write_primitives(lod, *source, m, old, doc, data, path);
-      } else {
-        jmesh["primitives"] = built_primitives(lod, m, doc["materials"], data, path);
-        if (jmesh["primitives"].empty()) {
-          throw IoError(path, "LOD " + std::to_string(k + 1) + " of mesh " + std::to_string(m) +
-                                  " has no faces; a glTF mesh needs at least one primitive");
-        }
-      }
-      if (base.contains("weights")) jmesh["weights"] = base["weights"];
-      set_morph_weights(jmesh, lod);
-      if (base.contains("extras") && !lod.morph_targets.empty()) jmesh["extras"] = base["extras"];
-      lod_mesh[k][m] = static_cast<int>(meshes.size());
-      meshes.push_back(std::move(jmesh));
+      lod_mesh[k][m] = add_mesh(lods.levels[k][m], m, "_LOD" + std::to_string(k + 1), "LOD " + std::to_string(k + 1));
+    }
+  }
+  // separate_mesh[s][m]: glTF mesh index of separate output s of asset mesh m.
+  std::vector<std::vector<int>> separate_mesh(lods.separate.size(), std::vector<int>(asset.meshes.size(), -1));
+  for (std::size_t s = 0; s < lods.separate.size(); ++s) {
+    for (std::size_t m = 0; m < asset.meshes.size(); ++m) {
+      if (json_mesh[m] >= 0) separate_mesh[s][m] = add_mesh(lods.separate[s].meshes[m], m, lods.separate[s].suffix,
+                                                            "the " + lods.separate[s].suffix.substr(1) + " LOD");
     }
   }
 
@@ -900,6 +911,14 @@ void add_lods(const Asset& asset, const LodChain& lods, const std::vector<int>& 
   }
   OrderedJson& nodes = doc["nodes"];
   const std::size_t source_nodes = nodes.size();
+  // Where each source node hangs: its parent, or -1 for a root.
+  std::vector<int> parent(source_nodes, -1);
+  for (std::size_t p = 0; p < source_nodes; ++p) {
+    if (!nodes[p].contains("children") || !nodes[p]["children"].is_array()) continue;
+    for (const OrderedJson& c : nodes[p]["children"]) {
+      if (c.is_number_unsigned() && c.get<std::size_t>() < source_nodes) parent[c.get<std::size_t>()] = static_cast<int>(p);
+    }
+  }
   for (std::size_t n = 0; n < source_nodes; ++n) {
     const int jm = json_index(nodes[n], "mesh");
     if (jm < 0 || static_cast<std::size_t>(jm) >= asset_mesh_of.size() || asset_mesh_of[jm] < 0) continue;
@@ -934,6 +953,41 @@ void add_lods(const Asset& asset, const LodChain& lods, const std::vector<int>& 
     node["extensions"]["MSFT_lod"] = {{"ids", std::move(ids)}};
     if (!node.contains("extras") || !node["extras"].is_object()) node["extras"] = OrderedJson::object();
     node["extras"]["MSFT_screencoverage"] = lods.screen_coverage;
+
+    // Separate outputs: beside the node, so that they share its world transform, outside its MSFT_lod.
+    for (std::size_t s = 0; s < lods.separate.size(); ++s) {
+      const Mesh& mesh = lods.separate[s].meshes[m];
+      const OrderedJson& base = nodes[n];
+      OrderedJson extra = OrderedJson::object();
+      if (base.contains("name") && base["name"].is_string()) {
+        extra["name"] = base["name"].get<std::string>() + lods.separate[s].suffix;
+      }
+      for (const auto& [key, value] : base.items()) {
+        if (key == "matrix" || key == "rotation" || key == "scale" || key == "translation") extra[key] = value;
+      }
+      extra["mesh"] = separate_mesh[s][m];
+      if (base.contains("skin") && mesh.skin.size() == mesh.vertex_count() && !mesh.skin.empty()) {
+        extra["skin"] = base["skin"];
+      }
+      if (base.contains("weights") && base["weights"].is_array() &&
+          base["weights"].size() == mesh.morph_targets.size() && !mesh.morph_targets.empty()) {
+        extra["weights"] = base["weights"];
+      }
+      extra["extras"] = {{"lodforge", {{"output", lods.separate[s].suffix.substr(1)}}}};
+      const std::size_t index = nodes.size();
+      nodes.push_back(std::move(extra));
+      if (parent[n] >= 0) {
+        nodes[static_cast<std::size_t>(parent[n])]["children"].push_back(index);
+      } else if (doc.contains("scenes") && doc["scenes"].is_array()) {
+        for (OrderedJson& scene : doc["scenes"]) {
+          if (!scene.contains("nodes") || !scene["nodes"].is_array()) continue;
+          const bool holds = std::any_of(scene["nodes"].begin(), scene["nodes"].end(), [&](const OrderedJson& r) {
+            return r.is_number_unsigned() && r.get<std::size_t>() == n;
+          });
+          if (holds) scene["nodes"].push_back(index);
+        }
+      }
+    }
   }
 
   OrderedJson& used = doc["extensionsUsed"];
@@ -1133,6 +1187,11 @@ void save_gltf_lods(const Asset& asset, const LodChain& lods, const std::filesys
     throw IoError(path, "MSFT_screencoverage needs " + std::to_string(lods.levels.size() + 1) +
                             " values (one per level including LOD0), got " +
                             std::to_string(lods.screen_coverage.size()));
+  }
+  for (const LodChain::Separate& s : lods.separate) {
+    if (s.meshes.size() != asset.meshes.size() || s.suffix.size() < 2 || s.suffix[0] != '_') {
+      throw IoError(path, "separate output \"" + s.suffix + "\" needs a suffix \"_name\" and one mesh per asset mesh");
+    }
   }
   for (std::size_t k = 0; k < lods.screen_coverage.size(); ++k) {
     const double c = lods.screen_coverage[k];

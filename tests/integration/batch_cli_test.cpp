@@ -260,6 +260,31 @@ TEST(BatchCli, MissedBudgetsAreReportedAndFailStrictRuns) {
   EXPECT_EQ(strict.exit_code, 1) << strict.output;
 }
 
+// Collision and occluder LODs: listed by --dry-run after the LODs, counted on their own line of the summary, and
+// a missed one (here a volume budget too tight for the triangle target) fails a --strict run.
+TEST(BatchCli, CollisionLodsArePlannedCountedAndFailStrictRunsWhenMissed) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_collision");
+  fs::create_directories(dir / "lib/a");
+  lodforge::io::save_asset(testlib::asset_of({lodforge::testing::make_uv_sphere(12, 16)}, lodforge::io::Format::obj),
+                           dir / "lib/a/sphere.obj");
+  std::ofstream(dir / "config.json")
+      << R"({"version": 1, "classes": [{"name": "all", "match": ["**"], "lods": [{"ratio": 0.5}],
+            "collision": {"ratio": 0.05, "max_volume_growth": 0.5}, "occluder": {"triangles": 40}}]})";
+  const CliResult plan = run_cli(run_args(dir / "config.json", dir / "lib", dir / "out", "--dry-run"));
+  ASSERT_EQ(plan.exit_code, 0) << plan.output;
+  EXPECT_NE(plan.output.find("LOD1 ratio 0.5; collision ratio 0.05, max_volume_growth 0.5%; occluder triangles 40;"),
+            std::string::npos)
+      << plan.output;
+  const CliResult r = run_cli(run_args(dir / "config.json", dir / "lib", dir / "out"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("1 of 2 collision/occluder LOD(s) met their budget, 1 missed"), std::string::npos)
+      << r.output;
+  EXPECT_TRUE(fs::exists(dir / "out/a/sphere_collision.obj"));
+  EXPECT_TRUE(fs::exists(dir / "out/a/sphere_occluder.obj"));
+  const CliResult strict = run_cli(run_args(dir / "config.json", dir / "lib", dir / "out2", "--strict"));
+  EXPECT_EQ(strict.exit_code, 1) << strict.output;
+}
+
 TEST(BatchCli, BadGltfFailsWithTheMessageOfTheSingleFileCommands) {
   const fs::path dir = lodforge::testing::temp_dir("batch_cli_gltf_number_range");
   const testlib::Library lib = testlib::write_library(dir / "lib", 12);

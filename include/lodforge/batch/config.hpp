@@ -14,6 +14,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <nlohmann/json_fwd.hpp>  // callers that build or read documents include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <string>
@@ -128,12 +129,32 @@ struct LodSpec {
   LodOptions options;
 };
 
+// A conservative LOD built beside the render chain, always from the source (docs/conservative.md): a collision
+// hull contains the source (SimplifyOptions::conservative = bounding), an occluder lies inside it (occluder).
+// It is an output of its own (its own file, or its own glTF node), never a level of the render chain.
+enum class ConservativeKind { collision, occluder };
+const char* conservative_kind_name(ConservativeKind kind);  // the config's key: "collision", "occluder"
+
+struct ConservativeSpec {
+  ConservativeKind kind = ConservativeKind::collision;
+  // ratio, triangles or max_error (a screen size means nothing for a mesh never drawn); none only on a collision
+  // spec with a volume budget, which then decides alone how far it goes.
+  std::optional<LodTarget> target;
+  // Collision only: stop before the volume grows by more than this per cent of the source's; negative = none.
+  double max_volume_growth_pct = -1;
+  // defaults < class options < its own overrides, with conservative and max_volume_growth set from the above;
+  // the target fields are those of a build from the source, as for a LodSpec.
+  LodOptions options;
+};
+
 struct AssetClass {
   std::string name;
   std::string description;
   std::vector<Glob> match;    // on the '/'-separated path relative to the library root, any one matches
   LodOptions options;         // defaults < class options: what every LOD of the class starts from
   std::vector<LodSpec> lods;  // LOD1..LODn; LOD0 is the source
+  // `collision` and `occluder` (own, else inherited from `defaults`): at most one of each, collision first.
+  std::vector<ConservativeSpec> conservative;
 
   bool matches(std::string_view relative_path) const;
 };
@@ -178,6 +199,9 @@ struct BatchConfig {
   RunLimits limits;
   ReportOptions report;
   LodSwitch lod_switch;             // `defaults.lod_switch`
+  // `defaults.collision` / `defaults.occluder` as JSON text (empty: none): each class without its own entry
+  // reads it against its own options.
+  std::string default_collision, default_occluder;
   std::vector<AssetClass> classes;  // in file order: the first class whose globs match wins
   std::string default_class;        // class of assets no glob matches; empty = such assets are skipped
 };
@@ -213,5 +237,7 @@ struct LodInput {
 // ratios stay ratios of the source); an error target becomes an absolute budget minus the error already
 // accumulated (bounds add along a chain), never below 0, with the triangle target at 1 so error decides.
 SimplifyOptions simplify_options_for(const LodSpec& lod, const LodInput& input);
+// The same for a conservative LOD (always built from the source); without a target, the volume budget decides.
+SimplifyOptions simplify_options_for(const ConservativeSpec& spec, const LodInput& input);
 
 }  // namespace lodforge::batch

@@ -34,6 +34,15 @@
 // "shows_previous" true where the LOD was not 10% smaller than the level before and shows that level's meshes
 // (no file of its own; reports of earlier versions lack it). lods.json (lods_manifest.hpp) is built from this.
 //
+// "conservative_lods" (assets of classes with collision or occluder LODs only): [{"kind": "collision" | "occluder",
+// "mode": "bounding" | "occluder", "target": {"kind", "value"} (kind "max_volume_growth" for a collision with only a
+// volume budget), "target_triangles", "max_volume_growth_pct": float | null, "triangles", "vertices", "ratio",
+// "error_bound_abs", "error_bound_rel", "error_bound_kind", "budget", "mean_rel", "rms_rel", "hausdorff_rel",
+// "volume_change_pct": float | null (LOD volume / source volume - 1, in %; null for an open source),
+// "collapses_refused" (by the nesting rule), "stop_reason", "seconds", "outputs": [str] (its own files),
+// "gltf_node_suffix": "_collision" | "_occluder" | null (its nodes in the asset's MSFT_lod glTF)}]. They are no
+// render level: not in "lods", lods.json or the summary's "lods" and "output_triangles"; the summary counts them
+// as "conservative_lods" and "conservative_lods_missed", present only when some asset has them.
 // "skipped": no class of the config matches the asset; "not_started": the run was stopped (Ctrl-C) before the
 // asset was reached (reports of earlier versions called those "skipped" and lack "not_started").
 // Assets are sorted by path. "seconds" (summary, asset, LOD) are the only fields that differ between two runs

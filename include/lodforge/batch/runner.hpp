@@ -142,6 +142,8 @@ struct PlannedAsset {
   std::string path;
   std::string class_name;         // empty: no class matches (the asset would be skipped)
   std::vector<std::string> lods;  // "ratio 0.5", "triangles 60", "max_error 0.03", "screen_size 2"
+  // Collision and occluder LODs: "collision ratio 0.05, max_volume_growth 10%", "occluder triangles 200".
+  std::vector<std::string> separate;
   bool rebuild = false;
   std::string reason;  // why it is rebuilt ("not built yet", "input or config changed", ...) or skipped
 };
@@ -186,5 +188,8 @@ bool pictures_pay(std::size_t input_triangles, std::size_t rendered_triangles, s
 
 // Output names: "props/crate.obj" LOD 2 -> "props/crate_LOD2.obj".
 std::string lod_file_name(const std::filesystem::path& relative_path, std::size_t level);
+// "props/crate.obj" -> "crate_collision.obj" / "crate_occluder.obj" (the file name of a separate output; in a
+// glTF with MSFT_lod the same suffix names its meshes and nodes).
+std::string conservative_file_name(const std::filesystem::path& relative_path, ConservativeKind kind);
 
 }  // namespace lodforge::batch

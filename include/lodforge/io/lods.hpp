@@ -12,9 +12,15 @@
 // weights where the LOD mesh still has them), listed finest first in the node's `extensions.MSFT_lod.ids`, and
 // `extras.MSFT_screencoverage`; `extensionsUsed` names MSFT_lod. Readers without MSFT_lod show LOD0 only, which
 // is why the extension is "used" and not "required".
+//
+// Separate LODs (LodChain::separate: collision hulls, occluders) are no part of MSFT_lod: each gets one glTF mesh
+// per asset mesh ("<name><suffix>") and, per node showing that mesh, a node "<node name><suffix>" with the node's
+// transform, placed beside it (a child of the same parent, or a root of the same scenes), with no screen coverage
+// and `extras.lodforge.output` naming what it is (the suffix without its leading '_': "collision").
 #pragma once
 
 #include <filesystem>
+#include <string>
 #include <vector>
 
 #include "lodforge/core/mesh.hpp"
@@ -33,6 +39,13 @@ struct LodChain {
   // instead of meshes of its own, so that a near-copy of a level is not stored twice; its LOD node is still
   // written, so readers that expect a fixed number of levels get them. levels[k] should then equal them.
   std::vector<bool> shows_previous;
+
+  // Meshes written beside the chain, outside MSFT_lod (collision hulls, occluders): one per asset mesh.
+  struct Separate {
+    std::string suffix;  // "_collision": appended to the names of its meshes and nodes
+    std::vector<Mesh> meshes;
+  };
+  std::vector<Separate> separate;
 };
 
 // Writes `asset` (its meshes as LOD0) and `lods` as one .gltf (+ "<stem>.bin", + copied external images) or

@@ -513,8 +513,15 @@ TEST(BatchConfig, SchemaDocumentsEveryKey) {
   for (const char* key : {"$schema", "version", "description", "defaults", "default_class", "classes"}) {
     EXPECT_TRUE(schema["properties"].contains(key)) << key;
   }
-  for (const char* key : {"name", "description", "match", "options", "lods"}) {
+  for (const char* key : {"name", "description", "match", "options", "lods", "collision", "occluder"}) {
     EXPECT_TRUE(defs["class"]["properties"].contains(key)) << key;
+  }
+  for (const char* key : {"collision", "occluder"}) EXPECT_TRUE(defs["defaults"]["properties"].contains(key)) << key;
+  for (const char* key : {"ratio", "triangles", "max_error", "max_volume_growth", "from"}) {
+    EXPECT_TRUE(defs["collision"]["properties"].contains(key)) << key;
+  }
+  for (const char* key : {"ratio", "triangles", "max_error", "from"}) {
+    EXPECT_TRUE(defs["occluder"]["properties"].contains(key)) << key;
   }
   for (const char* key : {"ratio", "triangles", "max_error", "screen_size", "from"}) {
     EXPECT_TRUE(defs["lod"]["properties"].contains(key)) << key;
@@ -591,7 +598,8 @@ TEST(BatchConfigErrors, RedirectedKeys) {
 TEST(BatchConfigErrors, UnknownDefaultsKeyListsAllowedKeys) {
   EXPECT_EQ(error_with("/defaults/ratio", 0.5),
             expected(std::string("defaults.ratio: unknown key; allowed: ") + kClassOptionKeys +
-                     ", gltf_lods, post_process, write_source_lod0, asset_timeout_s, report_pictures, lod_switch"));
+                     ", gltf_lods, post_process, write_source_lod0, asset_timeout_s, report_pictures, lod_switch, "
+                     "collision, occluder"));
 }
 
 TEST(BatchConfigErrors, OutputOptions) {
@@ -701,19 +709,21 @@ TEST(BatchConfig, SymmetryPlanePerClass) {
   EXPECT_EQ(parse_config(e).classes[0].options.pending.symmetry_plane, symmetry::PlaneMode::x);
 }
 
-// Conservative LODs are separate outputs the runner does not write yet: any level that asks for one is refused
-// with the reason; "none" and a negative volume budget are accepted, and the effective config leaves both out.
-TEST(BatchConfigErrors, ConservativeRefused) {
+// Conservative LODs are separate outputs, never render levels: in the option levels and in a LOD only the neutral
+// values parse (the message points to the collision and occluder entries), and the effective config leaves them
+// out.
+TEST(BatchConfigErrors, ConservativeOnlyAsSeparateEntries) {
   const std::string why =
-      "collision and occluder LODs are separate outputs, not render levels of a LOD chain; the batch runner does "
-      "not write them yet (use `lodforge simplify --conservative bounding|occluder`, docs/conservative.md)";
+      "collision and occluder LODs are separate outputs, not render levels of a LOD chain: give them as a "
+      "\"collision\" or \"occluder\" entry of the class or of defaults (docs/conservative.md)";
   EXPECT_EQ(error_with("/defaults/conservative", "bounding"), expected("defaults.conservative: " + why));
   EXPECT_EQ(error_with("/classes/0/options/conservative", "occluder"),
             expected("classes[0].options.conservative: " + why));
   EXPECT_EQ(error_with("/classes/0/lods/0/conservative", "bounding"),
             expected("classes[0].lods[0].conservative: " + why));
   EXPECT_EQ(error_with("/classes/0/lods/0/max_volume_growth", 0.1),
-            expected("classes[0].lods[0].max_volume_growth: applies to conservative LODs only: " + why));
+            expected("classes[0].lods[0].max_volume_growth: applies to collision LODs only: write it in the "
+                     "\"collision\" entry of the class or of defaults (docs/conservative.md)"));
   EXPECT_EQ(error_with("/defaults/conservative", "hull"),
             expected("defaults.conservative: must be one of \"none\", \"bounding\", \"occluder\", got string "
                      "\"hull\""));
@@ -724,6 +734,135 @@ TEST(BatchConfigErrors, ConservativeRefused) {
   EXPECT_FALSE(e["defaults"].contains("conservative"));
   EXPECT_FALSE(e["defaults"].contains("max_volume_growth"));
   EXPECT_EQ(e, effective_config_json(parse_config(minimal())));
+}
+
+// A class's collision and occluder entries: built from the source with their own target, the class's options
+// under their own overrides, the volume budget in per cent; written back so that the document parses the same.
+TEST(BatchConfig, CollisionAndOccluderEntries) {
+  Json doc = minimal();
+  doc["classes"][0]["options"] = {{"seed", 7}};
+  doc["classes"][0]["collision"] = {{"ratio", 0.1}, {"max_volume_growth", 12.5}, {"engine", "multiple_choice"}};
+  doc["classes"][0]["occluder"] = {{"max_error", {{"relative", 0.02}}}};
+  const BatchConfig c = parse_config(doc);
+  const AssetClass& cls = c.classes[0];
+  ASSERT_EQ(cls.lods.size(), 2u) << "the render chain is unchanged";
+  ASSERT_EQ(cls.conservative.size(), 2u);
+  const ConservativeSpec& col = cls.conservative[0];
+  EXPECT_EQ(col.kind, ConservativeKind::collision);
+  ASSERT_TRUE(col.target.has_value());
+  EXPECT_EQ(col.target->kind, TargetKind::ratio);
+  EXPECT_EQ(col.max_volume_growth_pct, 12.5);
+  EXPECT_EQ(col.options.simplify.conservative, Conservative::bounding);
+  EXPECT_DOUBLE_EQ(col.options.simplify.max_volume_growth, 0.125);
+  EXPECT_EQ(col.options.simplify.engine, Engine::multiple_choice);
+  EXPECT_EQ(col.options.simplify.seed, 7u);
+  const ConservativeSpec& occ = cls.conservative[1];
+  EXPECT_EQ(occ.kind, ConservativeKind::occluder);
+  EXPECT_EQ(occ.options.simplify.conservative, Conservative::occluder);
+  EXPECT_LT(occ.options.simplify.max_volume_growth, 0.0);
+  EXPECT_EQ(occ.options.simplify.engine, Engine::edge_collapse);
+
+  const SimplifyOptions so = simplify_options_for(col, input(1000, 2.0));
+  EXPECT_EQ(so.target_triangles, 100u);
+  EXPECT_EQ(so.conservative, Conservative::bounding);
+  const SimplifyOptions oo = simplify_options_for(occ, input(1000, 2.0));
+  EXPECT_DOUBLE_EQ(oo.max_error_abs, 0.04);
+  EXPECT_EQ(oo.target_triangles, 1u);
+
+  const Json e = effective_config_json(c);
+  EXPECT_EQ(e["classes"][0]["collision"]["max_volume_growth"], 12.5);
+  EXPECT_EQ(e["classes"][0]["collision"]["ratio"], 0.1);
+  EXPECT_FALSE(e["classes"][0]["collision"].contains("conservative"));
+  EXPECT_EQ(effective_config_json(parse_config(e)), e);
+  // The cache key of a class without them is what it was before they existed.
+  EXPECT_FALSE(effective_class_json(parse_config(minimal()), parse_config(minimal()).classes[0])["class"].contains(
+      "collision"));
+  EXPECT_NE(effective_class_json(c, cls), effective_class_json(parse_config(minimal()), parse_config(minimal()).classes[0]));
+}
+
+// A collision entry may hold a volume budget alone: as few triangles as the budget allows.
+TEST(BatchConfig, CollisionWithAVolumeBudgetOnly) {
+  Json doc = minimal();
+  doc["classes"][0]["collision"] = {{"max_volume_growth", 5}};
+  const BatchConfig c = parse_config(doc);
+  ASSERT_EQ(c.classes[0].conservative.size(), 1u);
+  EXPECT_FALSE(c.classes[0].conservative[0].target.has_value());
+  const SimplifyOptions o = simplify_options_for(c.classes[0].conservative[0], input(1000, 1.0));
+  EXPECT_EQ(o.target_triangles, 1u);
+  EXPECT_DOUBLE_EQ(o.max_volume_growth, 0.05);
+  EXPECT_EQ(effective_config_json(parse_config(effective_config_json(c))), effective_config_json(c));
+}
+
+// defaults.collision applies to every class that gives none, read against that class's options; null declines it.
+TEST(BatchConfig, DefaultCollisionIsInheritedUnlessDeclined) {
+  const Json doc = Json::parse(R"({
+    "version": 1,
+    "defaults": {"collision": {"triangles": 50}, "seed": 3},
+    "classes": [
+      {"name": "a", "match": ["a/**"], "options": {"border_weight": 2}, "lods": [{"ratio": 0.5}]},
+      {"name": "b", "match": ["b/**"], "lods": [{"ratio": 0.5}], "collision": null},
+      {"name": "c", "match": ["c/**"], "lods": [{"ratio": 0.5}], "collision": {"ratio": 0.2}}
+    ]
+  })");
+  const BatchConfig c = parse_config(doc);
+  ASSERT_EQ(c.classes[0].conservative.size(), 1u);
+  EXPECT_EQ(c.classes[0].conservative[0].target->triangles, 50u);
+  EXPECT_EQ(c.classes[0].conservative[0].options.simplify.border_weight, 2.0);
+  EXPECT_EQ(c.classes[0].conservative[0].options.simplify.seed, 3u);
+  EXPECT_TRUE(c.classes[1].conservative.empty());
+  ASSERT_EQ(c.classes[2].conservative.size(), 1u);
+  EXPECT_EQ(c.classes[2].conservative[0].target->ratio, 0.2);
+  const Json e = effective_config_json(c);
+  EXPECT_TRUE(e["classes"][1]["collision"].is_null());
+  EXPECT_EQ(e["defaults"]["collision"], Json::parse(R"({"triangles": 50})"));
+  EXPECT_EQ(effective_config_json(parse_config(e)), e);
+}
+
+TEST(BatchConfigErrors, CollisionAndOccluderEntries) {
+  EXPECT_EQ(error_with("/classes/0/occluder", Json::parse(R"({"ratio": 0.1, "max_volume_growth": 5})")),
+            expected("classes[0].occluder.max_volume_growth: applies to collision LODs only (an occluder loses "
+                     "volume; bound it with its target)"));
+  EXPECT_EQ(error_with("/classes/0/collision", Json::parse(R"({"ratio": 0.1, "engine": "polychord"})")),
+            expected("classes[0].collision.engine: a collision or occluder LOD needs a triangle engine: "
+                     "\"edge_collapse\" or \"multiple_choice\", got \"polychord\""));
+  {
+    Json doc = minimal();
+    doc["classes"][0]["options"] = {{"engine", "cluster"}};
+    doc["classes"][0]["occluder"] = {{"triangles", 20}};
+    EXPECT_EQ(error_of(doc), expected("classes[0].occluder: inherits engine \"cluster\", which cannot build collision "
+                                      "or occluder LODs; set \"engine\" here to \"edge_collapse\" or "
+                                      "\"multiple_choice\""));
+  }
+  {
+    Json doc = minimal();
+    doc["defaults"]["collision"] = {{"ratio", 0.1}};
+    doc["classes"][0]["options"] = {{"engine", "polychord"}};
+    EXPECT_EQ(error_of(doc), expected("classes[0]: with this class's options, defaults.collision: inherits engine "
+                                      "\"polychord\", which cannot build collision or occluder LODs; set "
+                                      "\"engine\" here to \"edge_collapse\" or \"multiple_choice\""));
+  }
+  EXPECT_EQ(error_with("/classes/0/collision", Json::object()),
+            expected("classes[0].collision: needs a target: one of ratio, triangles, max_error, or a "
+                     "max_volume_growth"));
+  EXPECT_EQ(error_with("/classes/0/occluder", Json::object()),
+            expected("classes[0].occluder: needs a target: one of ratio, triangles, max_error"));
+  EXPECT_EQ(error_with("/classes/0/collision", Json::parse(R"({"ratio": 0.1, "triangles": 5})")),
+            expected("classes[0].collision: has 2 targets (ratio, triangles); give exactly one"));
+  EXPECT_EQ(error_with("/classes/0/collision", Json::parse(R"({"ratio": 1.5})")),
+            expected("classes[0].collision.ratio: must be <= 1"));
+  EXPECT_EQ(error_with("/classes/0/collision", Json::parse(R"({"max_volume_growth": -2})")),
+            expected("classes[0].collision.max_volume_growth: must be >= 0"));
+  EXPECT_EQ(error_with("/defaults/occluder", Json::parse(R"({"screen_size": {"pixels": 100}})")),
+            expected("defaults.occluder.screen_size: a collision or occluder LOD is never drawn, so it has no screen "
+                     "size; give ratio, triangles or max_error"));
+  EXPECT_EQ(error_with("/classes/0/collision", Json::parse(R"({"ratio": 0.1, "from": "previous"})")),
+            expected("classes[0].collision.from: a collision or occluder LOD is always built from the source"));
+  EXPECT_EQ(error_with("/classes/0/collision", Json::parse(R"({"ratio": 0.1, "conservative": "bounding"})"))
+                .rfind("test.json: classes[0].collision.conservative: unknown key; allowed: ratio, triangles, max_error, "
+                       "max_volume_growth, from, screen_size, engine, ",
+                       0),
+            0u);
+  EXPECT_EQ(error_with("/classes/0/collision", 0.1), expected("classes[0].collision: must be an object, got 0.1"));
 }
 
 TEST(BatchConfigErrors, Tiling) {
@@ -781,10 +920,11 @@ TEST(BatchConfigErrors, PermissiveAndPriorityChannel) {
 TEST(BatchConfigErrors, ClassStructure) {
   EXPECT_EQ(error_with("/classes/0", 5), expected("classes[0]: must be an object, got 5"));
   EXPECT_EQ(error_with("/classes/0/colour", "red"),
-            expected("classes[0].colour: unknown key; allowed: name, description, match, options, lods"));
+            expected("classes[0].colour: unknown key; allowed: name, description, match, options, lods, "
+                     "collision, occluder"));
   EXPECT_EQ(error_with("/classes/0/lod", Json::array()),
             expected("classes[0].lod: unknown key (did you mean \"lods\"?); allowed: name, description, match, "
-                     "options, lods"));
+                     "options, lods, collision, occluder"));
   EXPECT_EQ(error_without("/classes/0/name"), expected("classes[0].name: missing (required)"));
   EXPECT_EQ(error_with("/classes/0/name", 3), expected("classes[0].name: must be a string, got 3"));
   EXPECT_EQ(error_with("/classes/0/name", ""), expected("classes[0].name: must not be empty"));

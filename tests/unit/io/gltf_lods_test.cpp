@@ -171,7 +171,7 @@ TEST(GltfLods, EmptyChainWritesThePlainAsset) {
   const fs::path dir = testing::temp_dir("gltf_lods_empty");
   Asset a;
   a.meshes.push_back(testing::make_tetrahedron());
-  save_gltf_lods(a, LodChain{.levels = {}, .screen_coverage = {0.0}, .shows_previous = {}}, dir / "x.glb");
+  save_gltf_lods(a, LodChain{.levels = {}, .screen_coverage = {0.0}, .shows_previous = {}, .separate = {}}, dir / "x.glb");
   const Json doc = document(dir / "x.glb");
   EXPECT_EQ(doc["meshes"].size(), 1u);
   EXPECT_EQ(doc["nodes"][0]["extensions"]["MSFT_lod"]["ids"], Json::array());
