@@ -27,6 +27,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <optional>
 #include <string>
 #include <unordered_map>
 #include <utility>
@@ -89,7 +90,7 @@ class GreedyEngine {
 
     t0 = std::chrono::steady_clock::now();
     for (;;) {
-      while (!stop()) {
+      while (!stop() || completing()) {
         select();
         if (selected_.empty()) {
           requeue_deferred();
@@ -138,6 +139,12 @@ class GreedyEngine {
                                              .max_error = cm_.model_error(max_error_)});
   }
 
+  // The target is reached with the mirror halves of last round's overlapping pairs still to go: one more round
+  // for those alone (select() takes nothing else once the target is reached), so that the LOD ends symmetric.
+  bool completing() const {
+    return !pending_.empty() && stop_.reached(cm_.alive_faces()) && !stopped_ && !volume_stop_;
+  }
+
   // Every allowed edge once (u < v), evaluated in parallel over fixed chunks of vertices (not per thread) and
   // queued in chunk order: deterministic.
   void collect() {
@@ -173,7 +180,8 @@ class GreedyEngine {
   // popped beyond the end of the selection goes back into the queue, so the batch is the one a one-at-a-time
   // selection makes.
   void select() {
-    const std::size_t remaining = cm_.alive_faces() - stop_.target_triangles;
+    const std::size_t remaining =
+        cm_.alive_faces() > stop_.target_triangles ? cm_.alive_faces() - stop_.target_triangles : 0;
     std::size_t batch = options_.max_batch > 0
                             ? options_.max_batch
                             : std::clamp<std::size_t>(cm_.alive_faces() * 3 / 2 / kBatchDivisor, 1, kMaxBatch);
@@ -296,7 +304,29 @@ class GreedyEngine {
           cm_.prefetch(selected_[i + 1].v);
         }
         evals_[i] = cm_.evaluate(u, v, /*with_cost=*/false);  // the queue had the cost; here where and how far
-        if (evals_[i].error <= budget2_) checks_[i] = cm_.check(u, v, evals_[i].position, s);
+        if (evals_[i].error > budget2_) continue;
+        const bool own_mirror = have_plane_ && mirror_[u] != kInvalidIndex &&
+                                ((mirror_[u] == u && mirror_[v] == v) || (mirror_[u] == v && mirror_[v] == u));
+        if (have_plane_ && ((i > 0 && role_[i - 1] == kPairHead) || role_[i] == kCompletes || own_mirror)) {
+          // The second of a pair goes to the mirror image of the first's place where that passes its checks,
+          // so that the pair stays a mirror image in spite of the sides' small differences; the second half of
+          // three vertices merged across the plane goes onto the plane.
+          Vec3d x;
+          if (own_mirror) {  // an edge that is its own mirror image: its survivor on the plane
+            x = onto_plane(evals_[i].position);
+          } else if (role_[i] == kCompletes) {
+            const bool merged = u == link_[i].a || v == link_[i].a;
+            x = merged ? onto_plane(evals_[i].position) : reflected(link_[i].position);
+          } else {
+            x = reflected(cm_.evaluate(selected_[i - 1].u(), selected_[i - 1].v, false).position);
+          }
+          checks_[i] = cm_.check(u, v, x, s);
+          if (checks_[i].ok()) {
+            evals_[i].position = x;
+            continue;
+          }
+        }
+        checks_[i] = cm_.check(u, v, evals_[i].position, s);
       }
     });
   }
@@ -348,7 +378,7 @@ class GreedyEngine {
       if (!within_volume(volume_change(i))) break;
       accept(i);
       if (role_[i] == kLeads) {
-        pending_.push_back({link_[i].a, link_[i].b, checks_[i].survivor, checks_[i].victim});
+        pending_.push_back({link_[i].a, link_[i].b, checks_[i].survivor, checks_[i].victim, evals_[i].position});
       } else if (role_[i] == kCompletes) {
         completed(link_[i].a, link_[i].b, checks_[i]);
         result_.paired_collapses += 2;
@@ -452,14 +482,53 @@ class GreedyEngine {
   void setup_symmetry(const Mesh& triangles) {
     if (options_.vertex_mirror != nullptr) {
       if (options_.vertex_mirror->size() == cm_.vertex_count()) mirror_ = *options_.vertex_mirror;
+      for (std::uint32_t& m : mirror_) {
+        if (m >= cm_.vertex_count()) m = kInvalidIndex;
+      }
+      if (const std::optional<symmetry::Plane> plane = fit_plane(triangles)) use_plane(*plane);
     } else {
       symmetry::SymmetryMap map = symmetry::detect_symmetry(triangles, {.plane = options_.symmetry_plane});
-      if (map.found()) mirror_ = std::move(map.vertex_mirror);
-    }
-    for (std::uint32_t& m : mirror_) {
-      if (m >= cm_.vertex_count()) m = kInvalidIndex;
+      if (map.found()) {
+        mirror_ = std::move(map.vertex_mirror);
+        use_plane(map.plane);
+      }
     }
   }
+
+  // The plane in the working mesh's normalised coordinates (model = origin + scale × normalised).
+  void use_plane(const symmetry::Plane& plane) {
+    have_plane_ = true;
+    plane_normal_ = plane.normal;
+    plane_offset_ = (dot(plane.normal, cm_.model_position(Vec3d{})) + plane.offset) / cm_.scale();
+  }
+
+  // A given map's plane: normal along the mean difference of the mirror pairs, through their mean midpoint.
+  std::optional<symmetry::Plane> fit_plane(const Mesh& triangles) const {
+    Vec3d sum{}, first{}, mid{};
+    std::size_t pairs = 0;
+    for (std::uint32_t v = 0; v < mirror_.size(); ++v) {
+      const std::uint32_t m = mirror_[v];
+      if (m == kInvalidIndex || m <= v) continue;
+      const Vec3d a = to_double(triangles.positions[v]), b = to_double(triangles.positions[m]);
+      Vec3d d = a - b;
+      if (pairs == 0) first = d;
+      if (dot(d, first) < 0) d = d * -1.0;
+      sum = sum + d;
+      mid = mid + (a + b) * 0.5;
+      ++pairs;
+    }
+    const double length = std::sqrt(dot(sum, sum));
+    if (pairs == 0 || !(length > 0) || !std::isfinite(length)) return std::nullopt;
+    symmetry::Plane plane;
+    plane.normal = sum * (1.0 / length);
+    plane.offset = -dot(plane.normal, mid * (1.0 / static_cast<double>(pairs)));
+    return plane;
+  }
+
+  Vec3d reflected(const Vec3d& x) const {
+    return x - plane_normal_ * (2.0 * (dot(plane_normal_, x) + plane_offset_));
+  }
+  Vec3d onto_plane(const Vec3d& x) const { return x - plane_normal_ * (dot(plane_normal_, x) + plane_offset_); }
 
   static std::uint64_t edge_id(std::uint32_t u, std::uint32_t v) { return (std::uint64_t{u} << 32) | v; }
 
@@ -565,7 +634,7 @@ class GreedyEngine {
       cm_.for_each_closed_ring_vertex(u, v, [&](std::uint32_t w) { mark_[w] = stamp_; });
       selected_.push_back(e);
       role_.push_back(kCompletes);
-      link_.push_back({p.survivor, p.victim});
+      link_.push_back({p.survivor, p.victim, p.position});
     }
     pending_.swap(keep);
   }
@@ -661,9 +730,11 @@ class GreedyEngine {
   };
   struct Link {
     std::uint32_t a = kInvalidIndex, b = kInvalidIndex;
+    Vec3d position{};  // kCompletes: where the first half put its survivor
   };
   struct Pending {
     std::uint32_t u, v, survivor, victim;  // the mirror edge, and the first half's survivor and victim
+    Vec3d position;                        // and where the first half put it
   };
   std::vector<std::uint8_t> role_;
   std::vector<Link> link_;
@@ -682,6 +753,9 @@ class GreedyEngine {
   // through the collapses; candidates re-queued at their symmetric cost, by edge.
   std::vector<std::uint32_t> mirror_;
   std::unordered_map<std::uint64_t, Rekeyed> rekeyed_;
+  bool have_plane_ = false;  // found here (a given map comes without its plane): the pairs' places mirror
+  Vec3d plane_normal_{};
+  double plane_offset_ = 0.0;
 };
 
 }  // namespace
