@@ -33,6 +33,10 @@
 #   scripts/bench.sh conservative [ARGS...] only lodforge_bench_conservative (conservative LODs, docs/conservative.md:
 #                                         bounding volume overhead vs the naive offset hull, occluder silhouettes on
 #                                         the closed scanned corpus; --ratio, --raster, --file, --corpus)
+#   scripts/bench.sh symmetry [ARGS...]  only lodforge_bench_symmetry --simplify (symmetric simplification,
+#                                         docs/symmetry.md: paired fraction, mirror error and mean distance with and
+#                                         without symmetry_weight; --weight, --noise, FILES; without --simplify in
+#                                         ARGS... the binary times detection instead)
 #   scripts/bench.sh budget [ARGS...]     only lodforge_bench_budget (error budgets, docs/budgets.md: the LOD simplify()
 #                                         makes with a budget vs its reported bound and the measured Hausdorff, vs
 #                                         the longest holding prefix of the same collapse sequence and vs meshopt at
@@ -98,9 +102,10 @@ REPORT="$BUILD_DIR/tests/bench/lodforge_bench_report"
 CLUSTER="$BUILD_DIR/tests/bench/lodforge_bench_cluster"
 TILING="$BUILD_DIR/tests/bench/lodforge_bench_tiling"
 CONSERVATIVE="$BUILD_DIR/tests/bench/lodforge_bench_conservative"
+SYMMETRY="$BUILD_DIR/tests/bench/lodforge_bench_symmetry"
 mode=all
 case "${1:-}" in
-  simplify | load | batch | quad | attributes | eval | budget | report | cluster | tiling | conservative) mode=$1; shift ;;
+  simplify | load | batch | quad | attributes | eval | budget | report | cluster | tiling | conservative | symmetry) mode=$1; shift ;;
 esac
 # The binaries this mode runs must be built (the combined mode runs simplify, load and batch).
 case $mode in
@@ -108,6 +113,7 @@ case $mode in
   simplify) needed=("$SIMPLIFY") ;; load) needed=("$LOAD") ;; batch) needed=("$BATCH") ;; quad) needed=("$QUAD") ;;
   attributes) needed=("$ATTRIBUTES") ;; eval) needed=("$EVAL") ;; budget) needed=("$BUDGET") ;; report) needed=("$REPORT") ;;
   cluster) needed=("$CLUSTER") ;; tiling) needed=("$TILING") ;; conservative) needed=("$CONSERVATIVE") ;;
+  symmetry) needed=("$SYMMETRY") ;;
 esac
 for b in "${needed[@]}"; do
   if [ ! -x "$b" ]; then
@@ -144,6 +150,7 @@ case $mode in
   cluster) "$CLUSTER" "$@" ;;
   tiling) "$TILING" --json "$OUT_DIR/bench-tiling.json" "$@" ;;
   conservative) "$CONSERVATIVE" "$@" ;;
+  symmetry) "$SYMMETRY" --simplify "$@" ;;
   report) "$REPORT" --out "$OUT_DIR/report" "$@" ;;
   attributes) "$ATTRIBUTES" --json "$OUT_DIR/bench-attributes.json" "$@" ;;
   all)
