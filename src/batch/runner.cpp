@@ -756,6 +756,18 @@ class Pipeline {
     }
   }
 
+  // The report's distances of a LOD from its source (both in world space), sampled by their size.
+  EvalResult evaluate_lod(Job& job, const Mesh& source, const Mesh& lod) const {
+    const std::size_t larger = std::max(source.triangle_count(), lod.triangle_count());
+    EvalOptions eval;
+    eval.samples = std::clamp(kEvalSamplesPerTriangle * larger, kEvalSamplesMin, kEvalSamplesMax);
+    eval.threads = threads_for(larger, jobs_);
+    eval.stop = job.stop_request();
+    EvalResult e = evaluate(source, lod, eval);
+    if (e.stopped) throw TimedOut{};
+    return e;
+  }
+
   void measure(Job& job) {
     // Measured in world space (glTF node transforms applied), as the asset is seen and as its diagonal is.
     io::Asset placed = with_meshes(job.asset, job.sources);
@@ -797,13 +809,7 @@ class Pipeline {
 
       placed.meshes = job.levels[k];
       const Mesh lod = io::world_surface(placed);
-      const std::size_t larger = std::max(source.triangle_count(), lod.triangle_count());
-      EvalOptions eval;
-      eval.samples = std::clamp(kEvalSamplesPerTriangle * larger, kEvalSamplesMin, kEvalSamplesMax);
-      eval.threads = threads_for(larger, jobs_);
-      eval.stop = job.stop_request();
-      const EvalResult e = evaluate(source, lod, eval);
-      if (e.stopped) throw TimedOut{};
+      const EvalResult e = evaluate_lod(job, source, lod);
       const quad::QuadStats quads = quad::quad_stats(lod);
 
       // Where this LOD switches in (share of screen height): the config's own screen size, else where its
@@ -892,13 +898,7 @@ class Pipeline {
       for (const std::string& s : stops) stop += (stop.empty() ? "" : ",") + s;
       placed.meshes = job.conservative[c];
       const Mesh lod = io::world_surface(placed);
-      const std::size_t larger = std::max(source.triangle_count(), lod.triangle_count());
-      EvalOptions eval;
-      eval.samples = std::clamp(kEvalSamplesPerTriangle * larger, kEvalSamplesMin, kEvalSamplesMax);
-      eval.threads = threads_for(larger, jobs_);
-      eval.stop = job.stop_request();
-      const EvalResult e = evaluate(source, lod, eval);
-      if (e.stopped) throw TimedOut{};
+      const EvalResult e = evaluate_lod(job, source, lod);
       // Volume change in per cent of the source's (bounding LODs grow, occluders shrink); null for an open source.
       const Json volume_change =
           closed && source_volume > 0 ? Json(finite(100.0 * (signed_volume(lod) / source_volume - 1.0))) : Json(nullptr);
