@@ -548,6 +548,15 @@ Field<LodOptions> max_volume_growth_field() {
           [](const LodOptions& o) { return o.simplify.max_volume_growth < 0.0 ? Json() : Json(o.simplify.max_volume_growth); }};
 }
 
+// Left out of the effective config at 0 (off), so that the cache keys of configs from before it stay as they were.
+Field<LodOptions> symmetry_weight_field() {
+  return {"symmetry_weight",
+          [](const Json& v, const std::string& path, LodOptions& o, Problems& p) {
+            if (const auto x = read_number(v, path, at_least(0), p)) o.simplify.symmetry_weight = *x;
+          },
+          [](const LodOptions& o) { return o.simplify.symmetry_weight == 0.0 ? Json() : Json(o.simplify.symmetry_weight); }};
+}
+
 // The simplifier options a config may set at every level (defaults, class options, LOD). One line each.
 const std::vector<Field<LodOptions>>& option_fields() {
   using B = FieldsOf<LodOptions>;
@@ -574,7 +583,7 @@ const std::vector<Field<LodOptions>>& option_fields() {
       B::choice("tiling", &SimplifyOptions::tiling, kTilingNames),
       // The same lower bound SimplifyOptions::validate() sets.
       B::count("tile_triangles", &SimplifyOptions::tile_triangles, 100, std::numeric_limits<std::uint32_t>::max()),
-      B::number("symmetry_weight", &SimplifyOptions::symmetry_weight, at_least(0)),
+      symmetry_weight_field(),
       conservative_field(),
       max_volume_growth_field(),
   };
@@ -1268,6 +1277,12 @@ Json target_json(const LodTarget& t) {
   return Json::object();
 }
 
+// symmetry_weight is left out at 0 (symmetry_weight_field); where a level turns off what its parent set, it
+// says so, so that the document parses back to the same config.
+void write_symmetry_override(Json& j, const LodOptions& o, const LodOptions& parent) {
+  if (o.simplify.symmetry_weight != parent.simplify.symmetry_weight) j["symmetry_weight"] = o.simplify.symmetry_weight;
+}
+
 Json class_json(const AssetClass& cls) {
   Json out = {{"name", cls.name}, {"options", class_options_json(cls.options)}};
   if (!cls.description.empty()) out["description"] = cls.description;
@@ -1277,6 +1292,7 @@ Json class_json(const AssetClass& cls) {
   Json lods = Json::array();
   for (const LodSpec& lod : cls.lods) {
     Json j = write_fields(option_fields(), lod.options);
+    write_symmetry_override(j, lod.options, cls.options);
     j.update(target_json(lod.target));
     j["from"] = std::string(enum_name<LodFrom>(kFromNames, lod.from));
     lods.push_back(std::move(j));
@@ -1284,6 +1300,7 @@ Json class_json(const AssetClass& cls) {
   out["lods"] = std::move(lods);
   for (const ConservativeSpec& spec : cls.conservative) {
     Json j = write_fields(conservative_option_fields(), spec.options);
+    write_symmetry_override(j, spec.options, cls.options);
     if (spec.target) j.update(target_json(*spec.target));
     if (spec.max_volume_growth_pct >= 0) j["max_volume_growth"] = spec.max_volume_growth_pct;
     out[conservative_kind_name(spec.kind)] = std::move(j);
@@ -1378,6 +1395,7 @@ nlohmann::json effective_config_json(const BatchConfig& config) {
   Json classes = Json::array();
   for (const AssetClass& cls : config.classes) {
     Json j = class_json(cls);
+    write_symmetry_override(j["options"], cls.options, config.defaults);
     // A class that declined the defaults' entry says so, so that the document parses back to the same config.
     if (!config.default_collision.empty() && !j.contains("collision")) j["collision"] = nullptr;
     if (!config.default_occluder.empty() && !j.contains("occluder")) j["occluder"] = nullptr;

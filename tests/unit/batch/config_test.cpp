@@ -689,6 +689,25 @@ TEST(BatchConfig, SymmetryWeightReachesTheSimplifier) {
   EXPECT_EQ(a.symmetry_plane, symmetry::PlaneMode::x);
   EXPECT_DOUBLE_EQ(b.symmetry_weight, 0.0);
   EXPECT_EQ(error_with("/defaults/symmetry_weight", -1), expected("defaults.symmetry_weight: must be >= 0"));
+  // Written back where set, left out at 0 (so configs from before the key keep their cache keys).
+  const Json e = effective_config_json(c);
+  EXPECT_EQ(e["classes"][0]["options"]["symmetry_weight"], 2.0);
+  EXPECT_EQ(e["classes"][0]["lods"][1]["symmetry_weight"], 0.0);  // turns off what its class set
+  EXPECT_FALSE(e["defaults"].contains("symmetry_weight"));
+  const BatchConfig back = parse_config(e);
+  EXPECT_DOUBLE_EQ(back.classes[0].lods[0].options.simplify.symmetry_weight, 2.0);
+  EXPECT_DOUBLE_EQ(back.classes[0].lods[1].options.simplify.symmetry_weight, 0.0);
+  Json doc = with_classes(R"([{"name": "a", "match": ["**"], "lods": [{"ratio": 0.5}]},
+                              {"name": "b", "match": ["b/**"], "options": {"symmetry_weight": 0}, "lods": [{"ratio": 0.5}]}])");
+  doc["defaults"]["symmetry_weight"] = 1.5;
+  const BatchConfig d = parse_config(doc);
+  for (const BatchConfig& x : {d, parse_config(effective_config_json(d))}) {
+    EXPECT_DOUBLE_EQ(x.classes[0].lods[0].options.simplify.symmetry_weight, 1.5);
+    EXPECT_DOUBLE_EQ(x.classes[1].lods[0].options.simplify.symmetry_weight, 0.0);
+  }
+  // A config that never sets it keeps the key of its classes as before the option existed.
+  const BatchConfig plain = parse_config(with_classes(R"([{"name": "a", "match": ["**"], "lods": [{"ratio": 0.5}]}])"));
+  EXPECT_EQ(effective_class_json(plain, plain.classes[0]).dump().find("symmetry_weight"), std::string::npos);
 }
 
 // The plane defaults to auto, a class's options override `defaults`, and the effective config writes it back.
