@@ -305,9 +305,8 @@ class GreedyEngine {
         }
         evals_[i] = cm_.evaluate(u, v, /*with_cost=*/false);  // the queue had the cost; here where and how far
         if (evals_[i].error > budget2_) continue;
-        const bool own_mirror = have_plane_ && mirror_[u] != kInvalidIndex &&
-                                ((mirror_[u] == u && mirror_[v] == v) || (mirror_[u] == v && mirror_[v] == u));
-        if (have_plane_ && ((i > 0 && role_[i - 1] == kPairHead) || role_[i] == kCompletes || own_mirror)) {
+        const bool own_mirror = plane_ && own_mirror_edge(u, v);
+        if (plane_ && ((i > 0 && role_[i - 1] == kPairHead) || role_[i] == kCompletes || own_mirror)) {
           // The second of a pair goes to the mirror image of the first's place where that passes its checks,
           // so that the pair stays a mirror image in spite of the sides' small differences; the second half of
           // three vertices merged across the plane goes onto the plane.
@@ -316,9 +315,9 @@ class GreedyEngine {
             x = onto_plane(evals_[i].position);
           } else if (role_[i] == kCompletes) {
             const bool merged = u == link_[i].a || v == link_[i].a;
-            x = merged ? onto_plane(evals_[i].position) : reflected(link_[i].position);
+            x = merged ? onto_plane(evals_[i].position) : plane_->reflect(link_[i].position);
           } else {
-            x = reflected(cm_.evaluate(selected_[i - 1].u(), selected_[i - 1].v, false).position);
+            x = plane_->reflect(cm_.evaluate(selected_[i - 1].u(), selected_[i - 1].v, false).position);
           }
           checks_[i] = cm_.check(u, v, x, s);
           if (checks_[i].ok()) {
@@ -497,9 +496,7 @@ class GreedyEngine {
 
   // The plane in the working mesh's normalised coordinates (model = origin + scale × normalised).
   void use_plane(const symmetry::Plane& plane) {
-    have_plane_ = true;
-    plane_normal_ = plane.normal;
-    plane_offset_ = (dot(plane.normal, cm_.model_position(Vec3d{})) + plane.offset) / cm_.scale();
+    plane_ = symmetry::Plane{plane.normal, (dot(plane.normal, cm_.model_position(Vec3d{})) + plane.offset) / cm_.scale()};
   }
 
   // A given map's plane: normal along the mean difference of the mirror pairs, through their mean midpoint.
@@ -525,18 +522,26 @@ class GreedyEngine {
     return plane;
   }
 
-  Vec3d reflected(const Vec3d& x) const {
-    return x - plane_normal_ * (2.0 * (dot(plane_normal_, x) + plane_offset_));
+  Vec3d onto_plane(const Vec3d& x) const { return x - plane_->normal * plane_->signed_distance(x); }
+
+  // Whether (u, v) is its own mirror image: both ends on the plane, or each the other's mirror.
+  bool own_mirror_edge(std::uint32_t u, std::uint32_t v) const {
+    return mirror_[u] != kInvalidIndex &&
+           ((mirror_[u] == u && mirror_[v] == v) || (mirror_[u] == v && mirror_[v] == u));
   }
-  Vec3d onto_plane(const Vec3d& x) const { return x - plane_normal_ * (dot(plane_normal_, x) + plane_offset_); }
 
   static std::uint64_t edge_id(std::uint32_t u, std::uint32_t v) { return (std::uint64_t{u} << 32) | v; }
 
+  // What pair_up() recorded when it re-queued this very entry (same version sum); null if it did not.
+  const Rekeyed* settled(const QueueEntry& e) const {
+    const auto it = rekeyed_.find(edge_id(e.u(), e.v));
+    return it != rekeyed_.end() && it->second.vsum == e.vsum ? &it->second : nullptr;
+  }
+
   // The candidate's own cost: its key, or what it was before pair_up() raised it.
   float own_cost(const QueueEntry& e) const {
-    const auto it = rekeyed_.find(edge_id(e.u(), e.v));
-    if (it != rekeyed_.end() && it->second.vsum == e.vsum) return it->second.cost;
-    return std::bit_cast<float>(e.bits());
+    const Rekeyed* tag = settled(e);
+    return tag != nullptr ? tag->cost : std::bit_cast<float>(e.bits());
   }
 
   // Whether the closed neighbourhood of `e` touches what this round has claimed.
@@ -553,18 +558,17 @@ class GreedyEngine {
     const std::uint32_t u = e.u(), v = e.v;
     const std::uint32_t mu = mirror_[u], mv = mirror_[v];
     if (mu == kInvalidIndex || mv == kInvalidIndex) return Pairing::single;  // outside the symmetric part
-    if ((mu == u && mv == v) || (mu == v && mv == u)) return Pairing::single;  // its own mirror image
-    const auto tag = rekeyed_.find(edge_id(u, v));
-    const bool settled = tag != rekeyed_.end() && tag->second.vsum == e.vsum;
-    const double cost = settled ? tag->second.cost : std::bit_cast<float>(e.bits());
+    if (own_mirror_edge(u, v)) return Pairing::single;
+    const Rekeyed* tag = settled(e);
+    const double cost = own_cost(e);
     double pair_cost = std::numeric_limits<double>::infinity();
-    if (!(settled && tag->second.alone) && cm_.adjacent(mu, mv) && cm_.rule(mu, mv) != EdgeRule::forbidden) {
+    if (!(tag != nullptr && tag->alone) && cm_.adjacent(mu, mv) && cm_.rule(mu, mv) != EdgeRule::forbidden) {
       partner = entry(std::min(mu, mv), std::max(mu, mv));
       pair_cost = 0.5 * (cost + std::bit_cast<float>(partner.bits()));
     }
     const double alone_cost = cost * (1.0 + options_.symmetry_weight);
     const double best = std::min(pair_cost, alone_cost);
-    if (!settled && best > cost * kRekeySlack) {
+    if (tag == nullptr && best > cost * kRekeySlack) {
       rekeyed_[edge_id(u, v)] = {e.vsum, static_cast<float>(cost), false};
       queue_.push(make_entry(cost_bits(best), u, v, e.vsum));
       return Pairing::requeued;
@@ -590,8 +594,7 @@ class GreedyEngine {
   // A collapse made alone: the victim's mirror loses its partner; the survivor of an edge that was its own
   // mirror image lies on the plane.
   void collapsed_alone(const QueueEntry& e, const Check& c) {
-    const bool own = mirror_[e.u()] != kInvalidIndex &&
-                     ((mirror_[e.u()] == e.u() && mirror_[e.v] == e.v) || (mirror_[e.u()] == e.v && mirror_[e.v] == e.u()));
+    const bool own = own_mirror_edge(e.u(), e.v);
     forget_victim(c.victim);
     if (own) mirror_[c.survivor] = c.survivor;
   }
@@ -753,9 +756,7 @@ class GreedyEngine {
   // through the collapses; candidates re-queued at their symmetric cost, by edge.
   std::vector<std::uint32_t> mirror_;
   std::unordered_map<std::uint64_t, Rekeyed> rekeyed_;
-  bool have_plane_ = false;  // found here (a given map comes without its plane): the pairs' places mirror
-  Vec3d plane_normal_{};
-  double plane_offset_ = 0.0;
+  std::optional<symmetry::Plane> plane_;  // normalised coordinates; where known, the pairs' places mirror
 };
 
 }  // namespace
