@@ -22,5 +22,7 @@ void register_validate_config(CLI::App& app);
 void register_merge_reports(CLI::App& app);
 void register_diff_reports(CLI::App& app);
 void register_bench(CLI::App& app);
+// terrain.cpp: height maps to stitched patch chains.
+void register_terrain(CLI::App& app);
 
 }  // namespace lodforge::cli

@@ -125,6 +125,7 @@ int main(int argc, char** argv) {
   lodforge::cli::register_merge_reports(app);
   lodforge::cli::register_diff_reports(app);
   lodforge::cli::register_bench(app);
+  lodforge::cli::register_terrain(app);
 
   if (const auto problem = unknown_word(app, argc, argv)) {
     std::fprintf(stderr, "error: %s\n", problem->c_str());

@@ -28,7 +28,7 @@ constexpr PictureView kViews[] = {
     {"iso", {{-1, -1, -1}}, {{0, 1, 0}}},
 };
 
-constexpr double kMargin = 0.04;     // of the frame's side, each side
+constexpr double kMargin = 0.04;      // of the frame's side, each side
 constexpr double kEdgePixels = 0.6;   // how close to a polygon edge a pixel centre is drawn as edge
 constexpr double kEdgeMinArea = 6.0;  // square pixels: smaller triangles are drawn without their edges
 
@@ -146,8 +146,12 @@ PictureFrame frame_mesh(const Mesh& mesh, const PictureView& view) {
   return frame;
 }
 
-Image render_picture(const Mesh& mesh, const PictureFrame& frame, int size) {
+Image render_picture(const Mesh& mesh, const PictureFrame& frame, int size,
+                     std::span<const std::array<std::uint8_t, 3>> face_colours) {
   if (size < 1 || size > 4096) throw std::invalid_argument("render_picture: size must be in [1, 4096]");
+  if (!face_colours.empty() && face_colours.size() != mesh.face_count()) {
+    throw std::invalid_argument("render_picture: one colour per face, or none");
+  }
   Image image;
   image.width = image.height = size;
   const std::size_t pixels = static_cast<std::size_t>(size) * static_cast<std::size_t>(size);
@@ -177,6 +181,7 @@ Image render_picture(const Mesh& mesh, const PictureFrame& frame, int size) {
     std::array<double, 3> base = {150, 170, 200};  // quads
     if (n == 3) base = {240, 160, 90};             // triangles
     if (n > 4) base = {140, 200, 140};             // n-gons
+    if (!face_colours.empty()) base = {face_colours[f][0] * 1.0, face_colours[f][1] * 1.0, face_colours[f][2] * 1.0};
     std::array<std::uint8_t, 3> fill{}, edge{};
     for (int i = 0; i < 3; ++i) {
       fill[i] = channel(base[i] * light);
@@ -210,6 +215,70 @@ std::string encode_png(const Image& image) {
   if (!stbi_write_png_to_func(append, &out, image.width, image.height, 3, image.rgb.data(), 3 * image.width)) {
     throw std::runtime_error("encode_png: the PNG encoder failed");
   }
+  return out;
+}
+
+namespace {
+
+std::uint32_t png_crc(const std::string& bytes, std::size_t begin) {
+  static const auto table = [] {
+    std::array<std::uint32_t, 256> t{};
+    for (std::uint32_t n = 0; n < 256; ++n) {
+      std::uint32_t c = n;
+      for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xedb88320u ^ (c >> 1) : c >> 1;
+      t[n] = c;
+    }
+    return t;
+  }();
+  std::uint32_t c = 0xffffffffu;
+  for (std::size_t i = begin; i < bytes.size(); ++i)
+    c = table[(c ^ static_cast<std::uint8_t>(bytes[i])) & 0xff] ^ (c >> 8);
+  return c ^ 0xffffffffu;
+}
+
+void put_u32(std::string& out, std::uint32_t v) {
+  for (int s = 24; s >= 0; s -= 8) out.push_back(static_cast<char>((v >> s) & 0xff));
+}
+
+void put_chunk(std::string& out, const char* type, const std::string& data) {
+  put_u32(out, static_cast<std::uint32_t>(data.size()));
+  const std::size_t begin = out.size();
+  out.append(type, 4);
+  out += data;
+  put_u32(out, png_crc(out, begin));
+}
+
+}  // namespace
+
+std::string encode_png_grey16(int width, int height, std::span<const std::uint16_t> samples) {
+  if (width < 1 || height < 1 || samples.size() != static_cast<std::size_t>(width) * static_cast<std::size_t>(height)) {
+    throw std::invalid_argument("encode_png_grey16: the image's size does not match its samples");
+  }
+  std::string rows;
+  rows.reserve(static_cast<std::size_t>(height) * (1 + 2 * static_cast<std::size_t>(width)));
+  for (int r = 0; r < height; ++r) {
+    rows.push_back(0);  // filter: none
+    for (int c = 0; c < width; ++c) {
+      const std::uint16_t v =
+          samples[static_cast<std::size_t>(r) * static_cast<std::size_t>(width) + static_cast<std::size_t>(c)];
+      rows.push_back(static_cast<char>(v >> 8));  // PNG samples are big-endian
+      rows.push_back(static_cast<char>(v & 0xff));
+    }
+  }
+  int packed_size = 0;
+  unsigned char* packed =
+      stbi_zlib_compress(reinterpret_cast<unsigned char*>(rows.data()), static_cast<int>(rows.size()), &packed_size, 5);
+  if (!packed) throw std::runtime_error("encode_png_grey16: the compressor failed");
+  const std::string idat(reinterpret_cast<const char*>(packed), static_cast<std::size_t>(packed_size));
+  STBIW_FREE(packed);
+  std::string header;
+  put_u32(header, static_cast<std::uint32_t>(width));
+  put_u32(header, static_cast<std::uint32_t>(height));
+  header += std::string{"\x10\x00\x00\x00\x00", 5};  // 16 bits, grey, deflate, no filter set, no interlace
+  std::string out = "\x89PNG\r\n\x1a\n";
+  put_chunk(out, "IHDR", header);
+  put_chunk(out, "IDAT", idat);
+  put_chunk(out, "IEND", "");
   return out;
 }
 

@@ -99,6 +99,7 @@ CollapseMesh::CollapseMesh(const Mesh& m, const SimplifyOptions& options, Parall
     scale_ = e > 0.0 ? e : 1.0;
   }
   cos_max_flip_ = std::cos(options.max_flip_angle_deg * std::numbers::pi / 180.0);
+  height_field_axis_ = options.height_field_axis;
 
   vx_.resize(nv);
   version_.assign(nv, 0);
@@ -610,6 +611,7 @@ bool CollapseMesh::flip_ok(const Vec3d& old_p, const Vec3d& x, const Vec3d& p, c
   const Vec3d nn = cross(e1n, e2n);
   const double nn2 = dot(nn, nn);
   if (!(nn2 > kDegenerateSine2 * dot(e1n, e1n) * dot(e2n, e2n))) return false;  // also false on NaN
+  if (height_field_axis_ >= 0 && !(nn[height_field_axis_] > 0.0)) return false;  // an overhang
   const Vec3d e1o = p - old_p, e2o = q - old_p;
   const Vec3d no = cross(e1o, e2o);
   const double no2 = dot(no, no);

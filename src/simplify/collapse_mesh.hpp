@@ -446,6 +446,7 @@ class CollapseMesh {
   double scale_ = 1.0;
   double diagonal_ = 0.0;
   double cos_max_flip_ = 0.5;
+  int height_field_axis_ = -1;  // SimplifyOptions::height_field_axis
   double weight_floor_ = 1e-30;  // keeps cost = E / W finite where all faces are degenerate
   double reg_weight_ = 0.0;      // rubber-band weight per anchor
   double mean_area_ = 0.0;       // of the input's faces, normalised units

@@ -33,6 +33,9 @@ std::vector<std::string> SimplifyOptions::validate() const {
     problems.push_back("regularization_weight must be finite and >= 0, got " + std::to_string(regularization_weight));
   }
   // 90 degrees or more would let a face turn edge-on or over in one collapse, and a series of them fold.
+  if (height_field_axis < -1 || height_field_axis > 2) {
+    problems.push_back("height_field_axis must be -1 (off), 0, 1 or 2, got " + std::to_string(height_field_axis));
+  }
   if (!(max_flip_angle_deg > 0.0 && max_flip_angle_deg < 90.0)) {
     problems.push_back("max_flip_angle_deg must be in (0, 90), got " + std::to_string(max_flip_angle_deg));
   }

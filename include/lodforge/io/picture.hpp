@@ -8,6 +8,7 @@
 // Deterministic: the same mesh, frame and size give the same bytes, on any thread (one picture is one thread).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -47,10 +48,15 @@ struct Image {
 // A size x size render of `mesh` on white: faces shaded by how much they face the viewer (faces turned away
 // darker), quads grey-blue, triangles orange, n-gons green, as render-wire colours them; pixels within about
 // half a pixel of a polygon edge darkened where the triangle covers at least 6 square pixels (denser edges would
-// hide the shading), so coarse LODs show their wireframe. size must be in [1, 4096].
-Image render_picture(const Mesh& mesh, const PictureFrame& frame, int size);
+// hide the shading), so coarse LODs show their wireframe. size must be in [1, 4096]. `face_colours`, one per
+// face, replaces the colours by kind (the terrain picture colours patches by their triangle count).
+Image render_picture(const Mesh& mesh, const PictureFrame& frame, int size,
+                     std::span<const std::array<std::uint8_t, 3>> face_colours = {});
 
 // The image as PNG bytes (8-bit RGB, no metadata): identical bytes for identical images.
 std::string encode_png(const Image& image);
+
+// A 16-bit grey PNG of width x height samples, rows top to bottom (height maps; io/heightmap.hpp reads it).
+std::string encode_png_grey16(int width, int height, std::span<const std::uint16_t> samples);
 
 }  // namespace lodforge::io

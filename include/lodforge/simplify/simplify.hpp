@@ -130,6 +130,10 @@ struct SimplifyOptions {
   std::vector<std::uint32_t> locked_vertices{};  // vertex ids that never move
   double regularization_weight = 1e-3;  // rubber-band point quadric weight × mean face area (0 = off)
   double max_flip_angle_deg = 60.0;  // reject collapses that turn a face normal by more than this (< 90)
+  // Height fields (terrain): 0, 1 or 2 refuses every collapse after which a face around it would not face
+  // +that axis, so a mesh that is a height field over the other two axes stays one (no overhangs, no vertex
+  // sliding past its neighbours); -1 = off. Triangle engines.
+  int height_field_axis = -1;
   unsigned threads = 0;              // 0 = all cores
   std::uint64_t seed = 1;            // multiple_choice sampling
   Engine engine = Engine::edge_collapse;
