@@ -33,6 +33,10 @@
 #   scripts/bench.sh conservative [ARGS...] only lodforge_bench_conservative (conservative LODs, docs/conservative.md:
 #                                         bounding volume overhead vs the naive offset hull, occluder silhouettes on
 #                                         the closed scanned corpus; --ratio, --raster, --file, --corpus)
+#   scripts/bench.sh terrain [ARGS...]   only lodforge_bench_terrain (terrain patch chains, docs/terrain.md: one
+#                                         65 x 65 patch's occluder chain on one core vs meshopt_simplify to the
+#                                         same counts, all patches of a 1025 x 1025 fBm map; --side, --reps,
+#                                         --threads)
 #   scripts/bench.sh symmetry [ARGS...]  only lodforge_bench_symmetry --simplify (symmetric simplification,
 #                                         docs/symmetry.md: paired fraction, mirror error and mean distance with and
 #                                         without symmetry_weight; --weight, --noise, FILES; without --simplify in
@@ -103,9 +107,10 @@ CLUSTER="$BUILD_DIR/tests/bench/lodforge_bench_cluster"
 TILING="$BUILD_DIR/tests/bench/lodforge_bench_tiling"
 CONSERVATIVE="$BUILD_DIR/tests/bench/lodforge_bench_conservative"
 SYMMETRY="$BUILD_DIR/tests/bench/lodforge_bench_symmetry"
+TERRAIN="$BUILD_DIR/tests/bench/lodforge_bench_terrain"
 mode=all
 case "${1:-}" in
-  simplify | load | batch | quad | attributes | eval | budget | report | cluster | tiling | conservative | symmetry) mode=$1; shift ;;
+  simplify | load | batch | quad | attributes | eval | budget | report | cluster | tiling | conservative | symmetry | terrain) mode=$1; shift ;;
 esac
 # The binaries this mode runs must be built (the combined mode runs simplify, load and batch).
 case $mode in
@@ -113,7 +118,7 @@ case $mode in
   simplify) needed=("$SIMPLIFY") ;; load) needed=("$LOAD") ;; batch) needed=("$BATCH") ;; quad) needed=("$QUAD") ;;
   attributes) needed=("$ATTRIBUTES") ;; eval) needed=("$EVAL") ;; budget) needed=("$BUDGET") ;; report) needed=("$REPORT") ;;
   cluster) needed=("$CLUSTER") ;; tiling) needed=("$TILING") ;; conservative) needed=("$CONSERVATIVE") ;;
-  symmetry) needed=("$SYMMETRY") ;;
+  symmetry) needed=("$SYMMETRY") ;; terrain) needed=("$TERRAIN") ;;
 esac
 for b in "${needed[@]}"; do
   if [ ! -x "$b" ]; then
@@ -151,6 +156,7 @@ case $mode in
   tiling) "$TILING" --json "$OUT_DIR/bench-tiling.json" "$@" ;;
   conservative) "$CONSERVATIVE" "$@" ;;
   symmetry) "$SYMMETRY" --simplify "$@" ;;
+  terrain) "$TERRAIN" "$@" ;;
   report) "$REPORT" --out "$OUT_DIR/report" "$@" ;;
   attributes) "$ATTRIBUTES" --json "$OUT_DIR/bench-attributes.json" "$@" ;;
   all)

@@ -8,13 +8,12 @@
 // the input. Placement minimises the quadric plus the rubber band (positive definite) over that polyhedron with
 // a small dual active-set method; the optimum has at most three active planes (G. van den Bergen, "Conservative
 // Mesh Decimation for Collision Detection and Occlusion Culling", GDC 2021).
+#include <Eigen/Dense>
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
 #include <optional>
-
-#include <Eigen/Dense>
 
 #include "collapse_mesh.hpp"
 
@@ -97,7 +96,7 @@ std::optional<Vec3d> CollapseMesh::conservative_place(std::uint32_t u, std::uint
     const HalfSpace* existing = k <= cap ? small_planes.data() : big_planes.data();
     for (std::size_t i = 0; i < k; ++i) {
       const HalfSpace& e = existing[i];
-      if (dot(e.g, hs.g) > 1.0 - kSamePlane && std::abs(e.h - hs.h) < kSamePlane) {
+      if (std::abs(e.h - hs.h) < kSamePlane && dot(e.g, hs.g) > 1.0 - kSamePlane) {
         if (hs.h > e.h) (k <= cap ? small_planes[i] : big_planes[i]).h = hs.h;
         return;
       }
@@ -139,7 +138,53 @@ std::optional<Vec3d> CollapseMesh::conservative_place(std::uint32_t u, std::uint
   // unconstrained minimiser and add the most violated plane, dropping planes whose multipliers reach zero on the
   // way, until none is violated; the KKT systems of at most three active planes are solved afresh each step.
   // A violated plane that no step can satisfy proves the polyhedron empty.
+  // With A positive definite (the rubber band makes it so) the system reduces to the m x m Schur complement
+  // S = Nᵀ A⁻¹ N of the active normals N: x = A⁻¹ (rhs_x + N μ), S μ = rhs_c − Nᵀ A⁻¹ rhs_x. Otherwise the whole
+  // KKT matrix is factored.
+  const Eigen::Matrix3d a_matrix{{A[0][0], A[0][1], A[0][2]}, {A[1][0], A[1][1], A[1][2]}, {A[2][0], A[2][1], A[2][2]}};
+  const Eigen::LLT<Eigen::Matrix3d> a_llt(a_matrix);
+  const bool schur =
+      a_llt.info() == Eigen::Success &&
+      a_llt.matrixLLT().diagonal().minCoeff() > std::sqrt(kSingularPivot) * a_llt.matrixLLT().diagonal().maxCoeff();
+  const Eigen::Matrix3d a_inverse =
+      schur ? Eigen::Matrix3d(a_llt.solve(Eigen::Matrix3d::Identity())) : Eigen::Matrix3d();
+  auto kkt_schur = [&](const std::size_t* act, int m, const Vec3d& rhs_x, const double* rhs_c, Vec3d& x, double* mu) {
+    const Eigen::Vector3d rx(rhs_x[0], rhs_x[1], rhs_x[2]);
+    const Eigen::Vector3d x0 = a_inverse * rx;
+    if (m == 0) {
+      x = Vec3d{{x0(0), x0(1), x0(2)}};
+      return x0.allFinite();
+    }
+    Eigen::Matrix<double, 3, 3> n = Eigen::Matrix3d::Zero();
+    for (int c = 0; c < m; ++c) {
+      const HalfSpace& p = planes[act[c]];
+      n.col(c) = Eigen::Vector3d(p.g[0], p.g[1], p.g[2]);
+    }
+    const Eigen::Matrix3d ain = a_inverse * n;
+    Eigen::Vector3d mu_v = Eigen::Vector3d::Zero();
+    if (m == 1) {
+      const double s = n.col(0).dot(ain.col(0));
+      if (!(s > kSingularPivot * a_inverse.diagonal().maxCoeff())) return false;
+      mu_v(0) = (rhs_c[0] - n.col(0).dot(x0)) / s;
+    } else {
+      Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3, 3> sm = n.leftCols(m).transpose() * ain.leftCols(m);
+      Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 3, 1> rs(m);
+      for (int c = 0; c < m; ++c) rs(c) = rhs_c[c] - n.col(c).dot(x0);
+      const Eigen::LLT<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3, 3>> s_llt(sm);
+      if (s_llt.info() != Eigen::Success) return false;
+      const auto d = s_llt.matrixLLT().diagonal();
+      if (!(d.minCoeff() * d.minCoeff() > kSingularPivot * sm.diagonal().maxCoeff())) return false;
+      const auto sol = s_llt.solve(rs);
+      for (int c = 0; c < m; ++c) mu_v(c) = sol(c);
+    }
+    const Eigen::Vector3d xs = x0 + ain.leftCols(m) * mu_v.head(m);
+    if (!xs.allFinite() || !mu_v.allFinite()) return false;
+    x = Vec3d{{xs(0), xs(1), xs(2)}};
+    for (int c = 0; c < m; ++c) mu[c] = mu_v(c);
+    return true;
+  };
   auto kkt = [&](const std::size_t* act, int m, const Vec3d& rhs_x, const double* rhs_c, Vec3d& x, double* mu) {
+    if (schur) return kkt_schur(act, m, rhs_x, rhs_c, x, mu);
     KktMatrix M = KktMatrix::Zero(3 + m, 3 + m);
     KktVector r(3 + m);
     for (int i = 0; i < 3; ++i) {
