@@ -8,6 +8,7 @@
 #include "lodforge/batch/shard.hpp"
 #include "lodforge/io/asset.hpp"
 #include "lodforge/io/file.hpp"
+#include "lodforge/io/heightmap.hpp"
 
 namespace lodforge::batch {
 namespace {
@@ -51,6 +52,8 @@ Json gltf_json(std::string_view bytes, bool glb) {
 // Relative references of the file to other local files, in the order the file lists them.
 std::vector<std::string> external_references(const fs::path& file, std::string_view bytes) {
   std::vector<std::string> refs;
+  // A height map's sidecar (size, spacing, scale, no-data) changes what it makes.
+  if (io::is_heightmap_path(file)) return {file.filename().string() + ".json"};
   io::Format format;
   try {
     format = io::format_from_path(file);

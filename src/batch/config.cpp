@@ -522,8 +522,10 @@ Field<LodOptions> conservative_field() {
           [](const Json& v, const std::string& path, LodOptions& o, Problems& p) {
             const auto x = read_enum(v, path, std::span<const EnumName<Conservative>>(kConservativeNames), p);
             if (!x) return;
-            if (*x != Conservative::none) p.add(path, std::string(kConservativeOutputs));
-            else o.simplify.conservative = *x;
+            if (*x != Conservative::none)
+              p.add(path, std::string(kConservativeOutputs));
+            else
+              o.simplify.conservative = *x;
           },
           [](const LodOptions& o) {
             return o.simplify.conservative == Conservative::none
@@ -539,13 +541,16 @@ Field<LodOptions> max_volume_growth_field() {
             const auto x = read_number(v, path, Bounds{}, p);
             if (!x) return;
             if (*x >= 0.0) {
-              p.add(path, "applies to collision LODs only: write it in the \"collision\" entry of the class or of "
-                          "defaults (docs/conservative.md)");
+              p.add(path,
+                    "applies to collision LODs only: write it in the \"collision\" entry of the class or of "
+                    "defaults (docs/conservative.md)");
             } else {
               o.simplify.max_volume_growth = *x;
             }
           },
-          [](const LodOptions& o) { return o.simplify.max_volume_growth < 0.0 ? Json() : Json(o.simplify.max_volume_growth); }};
+          [](const LodOptions& o) {
+            return o.simplify.max_volume_growth < 0.0 ? Json() : Json(o.simplify.max_volume_growth);
+          }};
 }
 
 // Left out of the effective config at 0 (off), so that the cache keys of configs from before it stay as they were.
@@ -554,7 +559,9 @@ Field<LodOptions> symmetry_weight_field() {
           [](const Json& v, const std::string& path, LodOptions& o, Problems& p) {
             if (const auto x = read_number(v, path, at_least(0), p)) o.simplify.symmetry_weight = *x;
           },
-          [](const LodOptions& o) { return o.simplify.symmetry_weight == 0.0 ? Json() : Json(o.simplify.symmetry_weight); }};
+          [](const LodOptions& o) {
+            return o.simplify.symmetry_weight == 0.0 ? Json() : Json(o.simplify.symmetry_weight);
+          }};
 }
 
 // The simplifier options a config may set at every level (defaults, class options, LOD). One line each.
@@ -640,7 +647,10 @@ const std::vector<Field<ReportOptions>>& report_fields() {
 }
 
 constexpr std::string_view kRootKeys[] = {"$schema", "version", "description", "defaults", "default_class", "classes"};
-constexpr std::string_view kClassKeys[] = {"name", "description", "match", "options", "lods", "collision", "occluder"};
+constexpr std::string_view kClassKeys[] = {"name", "description", "match",    "options",
+                                           "lods", "collision",   "occluder", "terrain"};
+constexpr std::string_view kTerrainKeys[] = {"patch_cells",   "conservative", "skirts", "spacing", "height_scale",
+                                             "height_offset", "nodata",       "width",  "height"};
 constexpr std::string_view kTargetKeys[] = {"ratio", "triangles", "max_error", "screen_size"};
 constexpr std::string_view kErrorKeys[] = {"relative", "absolute"};
 constexpr std::string_view kScreenKeys[] = {"pixels", "screen_height_px", "fov_y_deg", "error_px"};
@@ -960,11 +970,14 @@ std::optional<ConservativeSpec> read_conservative(const Json& v, const std::stri
   if (engine != Engine::edge_collapse && engine != Engine::multiple_choice) {
     const std::string name(enum_name<Engine>(kEngineNames, engine));
     if (find(v, "engine")) {
-      problems.add(child(path, "engine"), "a collision or occluder LOD needs a triangle engine: \"edge_collapse\" "
-                                          "or \"multiple_choice\", got \"" + name + "\"");
+      problems.add(child(path, "engine"),
+                   "a collision or occluder LOD needs a triangle engine: \"edge_collapse\" "
+                   "or \"multiple_choice\", got \"" +
+                       name + "\"");
     } else {
-      problems.add(path, "inherits engine \"" + name + "\", which cannot build collision or occluder LODs; set "
-                         "\"engine\" here to \"edge_collapse\" or \"multiple_choice\"");
+      problems.add(path, "inherits engine \"" + name +
+                             "\", which cannot build collision or occluder LODs; set "
+                             "\"engine\" here to \"edge_collapse\" or \"multiple_choice\"");
     }
     ok = false;
   }
@@ -1004,7 +1017,8 @@ void read_class_conservative(const Json& v, const std::string& path, const Batch
       if (own->is_null()) continue;
       spec = read_conservative(*own, child(path, key), kind, cls.options, problems);
     } else {
-      const std::string& text = kind == ConservativeKind::collision ? config.default_collision : config.default_occluder;
+      const std::string& text =
+          kind == ConservativeKind::collision ? config.default_collision : config.default_occluder;
       if (text.empty()) continue;
       Problems inherited;
       spec = read_conservative(Json::parse(text), child("defaults", key), kind, cls.options, inherited);
@@ -1042,6 +1056,91 @@ void read_lods(const Json& v, const std::string& path, AssetClass& cls, Problems
     chain.check(*lod, lod_path, problems);
     cls.lods.push_back(std::move(*lod));
   }
+}
+
+TerrainSpec read_terrain(const Json& v, const std::string& path, Problems& problems) {
+  TerrainSpec t;
+  if (!expect_object(v, path, problems)) return t;
+  check_keys(v, path, kTerrainKeys, problems);
+  if (const Json* x = find(v, "patch_cells")) {
+    if (const auto n = read_count(*x, child(path, "patch_cells"), 2, 4096, problems)) t.patch_cells = *n;
+  }
+  if (const Json* x = find(v, "conservative")) {
+    const auto mode = read_enum(*x, child(path, "conservative"),
+                                std::span<const EnumName<Conservative>>(kConservativeNames), problems);
+    if (mode) t.conservative = *mode;
+  }
+  if (const Json* x = find(v, "skirts")) {
+    if (const auto b = read_bool(*x, child(path, "skirts"), problems)) t.skirts = *b;
+  }
+  if (const Json* x = find(v, "spacing")) {
+    const std::string sp = child(path, "spacing");
+    if (x->is_array() && x->size() == 2) {
+      const auto sx = read_number((*x)[0], child(sp, 0), above(0), problems);
+      const auto sz = read_number((*x)[1], child(sp, 1), above(0), problems);
+      if (sx && sz) {
+        t.layout.spacing_x = *sx;
+        t.layout.spacing_z = *sz;
+      }
+    } else if (x->is_number()) {
+      if (const auto d = read_number(*x, sp, above(0), problems)) t.layout.spacing_x = t.layout.spacing_z = *d;
+    } else {
+      problems.add(sp, "must be a number or [x, z], got " + describe(*x));
+    }
+  }
+  if (const Json* x = find(v, "height_scale")) {
+    if (const auto d = read_number(*x, child(path, "height_scale"), Bounds{}, problems)) t.layout.height_scale = *d;
+  }
+  if (const Json* x = find(v, "height_offset")) {
+    if (const auto d = read_number(*x, child(path, "height_offset"), Bounds{}, problems)) t.layout.height_offset = *d;
+  }
+  if (const Json* x = find(v, "nodata")) {
+    if (const auto n = read_count(*x, child(path, "nodata"), 0, 65535, problems)) {
+      t.layout.nodata = static_cast<std::uint16_t>(*n);
+    }
+  }
+  if (const Json* x = find(v, "width")) {
+    if (const auto n = read_count(*x, child(path, "width"), 2, 1u << 20, problems)) t.layout.width = *n;
+  }
+  if (const Json* x = find(v, "height")) {
+    if (const auto n = read_count(*x, child(path, "height"), 2, 1u << 20, problems)) t.layout.height = *n;
+  }
+  for (const std::string& line : t.layout.validate()) problems.add(path, line);
+  return t;
+}
+
+Json terrain_json(const TerrainSpec& t) {
+  Json out = {{"patch_cells", t.patch_cells},
+              {"conservative",
+               std::string(enum_name(std::span<const EnumName<Conservative>>(kConservativeNames), t.conservative))},
+              {"skirts", t.skirts},
+              {"spacing", Json::array({t.layout.spacing_x, t.layout.spacing_z})},
+              {"height_scale", t.layout.height_scale},
+              {"height_offset", t.layout.height_offset}};
+  if (t.layout.nodata) out["nodata"] = *t.layout.nodata;
+  if (t.layout.width) out["width"] = t.layout.width;
+  if (t.layout.height) out["height"] = t.layout.height;
+  return out;
+}
+
+// A terrain class: ratio targets only, no collision or occluder entries of its own (those inherited from
+// `defaults` do not apply to it).
+void check_terrain_class(const Json& v, const std::string& path, AssetClass& cls, Problems& problems) {
+  for (std::size_t i = 0; i < cls.lods.size(); ++i) {
+    if (cls.lods[i].target.kind != TargetKind::ratio) {
+      problems.add(child(child(path, "lods"), i),
+                   "a terrain class takes ratio targets only (each a fraction of a full patch's triangles)");
+    }
+  }
+  for (const ConservativeKind kind : kConservativeKinds) {
+    const Json* own = find(v, conservative_kind_name(kind));
+    if (own != nullptr && !own->is_null()) {
+      problems.add(child(path, conservative_kind_name(kind)),
+                   "a terrain class has no collision or occluder entries: \"terrain.conservative\" sets its "
+                   "patches' mode");
+    }
+  }
+  cls.conservative.clear();
 }
 
 std::optional<AssetClass> read_class(const Json& v, const std::string& path, const BatchConfig& config,
@@ -1082,6 +1181,10 @@ std::optional<AssetClass> read_class(const Json& v, const std::string& path, con
     problems.add(child(path, "lods"), "missing (required)");
   }
   read_class_conservative(v, path, config, cls, problems);
+  if (const Json* terrain = find(v, "terrain")) {
+    cls.terrain = read_terrain(*terrain, child(path, "terrain"), problems);
+    check_terrain_class(v, path, cls, problems);
+  }
   return cls;
 }
 
@@ -1305,6 +1408,7 @@ Json class_json(const AssetClass& cls) {
     if (spec.max_volume_growth_pct >= 0) j["max_volume_growth"] = spec.max_volume_growth_pct;
     out[conservative_kind_name(spec.kind)] = std::move(j);
   }
+  if (cls.terrain) out["terrain"] = terrain_json(*cls.terrain);
   return out;
 }
 
@@ -1466,9 +1570,7 @@ SimplifyOptions simplify_options_for(const LodSpec& lod, const LodInput& input) 
 }
 
 SimplifyOptions simplify_options_for(const ConservativeSpec& spec, const LodInput& input) {
-  LodSpec lod{.target = spec.target.value_or(volume_only_target()),
-              .from = LodFrom::source,
-              .options = spec.options};
+  LodSpec lod{.target = spec.target.value_or(volume_only_target()), .from = LodFrom::source, .options = spec.options};
   return simplify_options_for(lod, LodInput{.source_triangles = input.source_triangles,
                                             .source_diagonal = input.source_diagonal,
                                             .accumulated_error_abs = 0});

@@ -57,11 +57,13 @@
 #include "lodforge/eval/eval.hpp"
 #include "lodforge/io/asset.hpp"
 #include "lodforge/io/file.hpp"
+#include "lodforge/io/heightmap.hpp"
 #include "lodforge/io/lods.hpp"
 #include "lodforge/io/picture.hpp"
 #include "lodforge/quad/quad_stats.hpp"
 #include "lodforge/simplify/simplify.hpp"
 #include "lodforge/symmetry/symmetry.hpp"
+#include "lodforge/tiling/terrain.hpp"
 #include "lodforge/tiling/tiling.hpp"
 
 namespace lodforge::batch {
@@ -260,9 +262,9 @@ MeshChain build_chain(const Mesh& source, const AssetClass& cls, std::size_t ass
     const bool chained = spec.from == LodFrom::previous && k > 0;
     const Mesh& from = chained ? chain[k - 1].mesh : source;
     // An error budget is measured against the source itself, so nothing is spent by the LODs before it.
-    const bool error_target =
-        spec.target.kind == TargetKind::max_error_rel || spec.target.kind == TargetKind::max_error_abs ||
-        spec.target.kind == TargetKind::screen_size;
+    const bool error_target = spec.target.kind == TargetKind::max_error_rel ||
+                              spec.target.kind == TargetKind::max_error_abs ||
+                              spec.target.kind == TargetKind::screen_size;
     const double spent = chained && !error_target ? chain[k - 1].error_bound_abs : 0.0;
     if (spec.target.kind == TargetKind::triangles && asset_triangles > 0) {
       const double share = static_cast<double>(spec.target.triangles) * static_cast<double>(source_triangles) /
@@ -313,8 +315,8 @@ std::vector<MeshLod> build_conservative(const Mesh& source, const AssetClass& cl
       spec.target->triangles = std::max<std::size_t>(1, static_cast<std::size_t>(std::llround(share)));
     }
     SimplifyOptions options = simplify_options_for(
-        spec, LodInput{.source_triangles = source_triangles, .source_diagonal = asset_diagonal,
-                       .accumulated_error_abs = 0});
+        spec,
+        LodInput{.source_triangles = source_triangles, .source_diagonal = asset_diagonal, .accumulated_error_abs = 0});
     options.threads = threads_for(source_triangles, jobs);
     options.stop = stop;
     const auto t0 = Clock::now();
@@ -370,6 +372,12 @@ struct Job {
   std::vector<bool> shows_previous;                      // per level: a near-copy of the one before, not stored
   std::vector<std::vector<MeshLod>> conservative_built;  // [mesh][entry]: the class's collision/occluder LODs
   std::vector<std::vector<Mesh>> conservative;           // [entry][mesh], post-processed for output
+  // A terrain class's height map: the patches' chains until the lods stage takes them (the asset's meshes are
+  // the patches' full-resolution surfaces), and per level (0 = the source) the triangles without the skirts,
+  // which the ratio targets count.
+  std::optional<terrain::Result> terrain;
+  std::vector<std::size_t> terrain_surface;
+  std::vector<std::vector<std::size_t>> terrain_patch_surface;  // [level][mesh]: the same per patch
 
   // The report's pictures (PNG bytes, the source first, then each level). Only the picture branch touches
   // them, and only until both branches after post-process have arrived at gather.
@@ -530,7 +538,8 @@ Json budget_json(const LodTarget& t, std::size_t source_triangles, std::size_t t
     }
   }
   if (shows_previous || (triangles > 0 && 10 * triangles > 9 * previous)) {
-    reasons.push_back("not 10% smaller than " + (level == 0 ? std::string("the source") : "LOD " + std::to_string(level)) +
+    reasons.push_back("not 10% smaller than " +
+                      (level == 0 ? std::string("the source") : "LOD " + std::to_string(level)) +
                       (shows_previous ? ": shows its meshes" : ""));
   }
   Json out{{"status", reasons.empty() ? "met" : "missed"}, {"reasons", std::move(reasons)}};
@@ -618,8 +627,8 @@ Json symmetry_json(const std::vector<Mesh>& meshes, symmetry::PlaneMode mode) {
     edges += s.edges;
     if (s.symmetric_edges > best) {
       best = s.symmetric_edges;
-      plane = Json::array({finite(s.plane.normal[0]), finite(s.plane.normal[1]), finite(s.plane.normal[2]),
-                           finite(s.plane.offset)});
+      plane = Json::array(
+          {finite(s.plane.normal[0]), finite(s.plane.normal[1]), finite(s.plane.normal[2]), finite(s.plane.offset)});
     }
   }
   return {{"plane_mode", symmetry::plane_mode_name(mode)},
@@ -653,7 +662,55 @@ class Pipeline {
     }
   }
 
-  void load(Job& job) { job.asset = io::load_asset(job.file); }
+  void load(Job& job) {
+    if (job.cls->terrain) {
+      load_terrain(job);
+    } else {
+      job.asset = io::load_asset(job.file);
+    }
+  }
+
+  // A height map of a terrain class: cut into patches and simplified here (terrain::build makes every level
+  // at once, its walls shared between patches); the asset is the patches' full-resolution surfaces, one mesh
+  // each, written as glTF.
+  void load_terrain(Job& job) {
+    if (!io::is_heightmap_path(job.file)) {
+      throw std::runtime_error("class \"" + job.cls->name +
+                               "\" is a terrain class: it takes height maps (.png, .r16), not meshes");
+    }
+    const TerrainSpec& spec = *job.cls->terrain;
+    const io::HeightMap map = io::load_heightmap(job.file, spec.layout);
+    terrain::Options o;
+    o.patch_cells = spec.patch_cells;
+    o.conservative = spec.conservative;
+    o.skirts = spec.skirts;
+    o.threads = threads_for(2 * map.width * map.height, jobs_);
+    o.levels.clear();
+    for (const LodSpec& lod : job.cls->lods) o.levels.push_back({.ratio = lod.target.ratio, .max_error = -1.0});
+    if (const std::vector<std::string> problems = o.validate(); !problems.empty()) {
+      throw std::runtime_error("terrain: " + joined(problems));
+    }
+    job.terrain = terrain::build(map, o);
+    job.asset = io::Asset{};
+    job.asset.source = job.file;
+    job.asset.format = io::Format::glb;
+    job.terrain_surface.assign(o.levels.size() + 1, 0);
+    job.terrain_patch_surface.assign(o.levels.size() + 1, {});
+    for (const terrain::Patch& p : job.terrain->patches) {
+      if (p.lods[0].face_count() == 0) continue;  // all hole: nothing to show
+      job.asset.meshes.push_back(p.lods[0]);
+      for (std::size_t k = 0; k < p.surface_triangles.size(); ++k) {
+        job.terrain_surface[k] += p.surface_triangles[k];
+        job.terrain_patch_surface[k].push_back(p.surface_triangles[k]);
+      }
+    }
+    job.record["terrain"] = {{"width", map.width},
+                             {"height", map.height},
+                             {"patches", {job.terrain->patches_x, job.terrain->patches_z}},
+                             {"patch_cells", spec.patch_cells},
+                             {"surface_triangles", job.terrain_surface},
+                             {"warnings", map.warnings}};
+  }
 
   void analyse(Job& job) {
     for (std::size_t m = 0; m < job.asset.meshes.size(); ++m) {
@@ -673,17 +730,30 @@ class Pipeline {
     if (job.triangles == 0) throw std::runtime_error("the asset has no triangles to simplify");
     // The size the asset is seen at: in world space, through its glTF nodes' transforms.
     job.diagonal = io::world_bounds(job.asset).diagonal();
-    job.record["input"] = {
-        {"triangles", job.triangles}, {"vertices", job.vertices}, {"diagonal", finite(job.diagonal)},
-        {"repeated_faces", job.repeated_faces}, {"bytes", asset_bytes(job.file)},
-        {"symmetry", symmetry_json(job.asset.meshes, job.cls->options.pending.symmetry_plane)}};
+    job.record["input"] = {{"triangles", job.triangles},
+                           {"vertices", job.vertices},
+                           {"diagonal", finite(job.diagonal)},
+                           {"repeated_faces", job.repeated_faces},
+                           {"bytes", asset_bytes(job.file)},
+                           {"symmetry", symmetry_json(job.asset.meshes, job.cls->options.pending.symmetry_plane)}};
   }
 
   void lods(Job& job) {
+    if (job.terrain) {
+      for (terrain::Patch& p : job.terrain->patches) {
+        if (p.lods[0].face_count() == 0) continue;
+        auto chain = std::make_shared<MeshChain>();
+        for (std::size_t k = 1; k < p.lods.size(); ++k) chain->push_back(MeshLod{.mesh = std::move(p.lods[k])});
+        job.chains.push_back(std::move(chain));
+      }
+      job.terrain.reset();
+      return;
+    }
     for (const Mesh& mesh : job.asset.meshes) {
       if (mesh.triangle_count() == 0) {  // e.g. a glTF mesh of lines only: its LODs are itself
         auto chain = std::make_shared<MeshChain>();
-        for (std::size_t k = 0; k < job.cls->lods.size(); ++k) chain->push_back(MeshLod{.mesh = mesh, .error_bound_abs = 0, .budget = {}});
+        for (std::size_t k = 0; k < job.cls->lods.size(); ++k)
+          chain->push_back(MeshLod{.mesh = mesh, .error_bound_abs = 0, .budget = {}});
         job.chains.push_back(std::move(chain));
         continue;
       }
@@ -807,6 +877,10 @@ class Pipeline {
       for (const std::string& s : stops) stop += (stop.empty() ? "" : ",") + s;
       const std::size_t previous = k == 0 ? job.triangles : lods.back()["triangles"].get<std::size_t>();
 
+      // A terrain's ratio targets count the surface, not the skirts (which grow with the level's wall vertices).
+      const std::size_t target_source = job.terrain_surface.empty() ? job.triangles : job.terrain_surface[0];
+      const std::size_t target_triangles = job.terrain_surface.empty() ? triangles : job.terrain_surface[k + 1];
+
       placed.meshes = job.levels[k];
       const Mesh lod = io::world_surface(placed);
       const EvalResult e = evaluate_lod(job, source, lod);
@@ -815,40 +889,41 @@ class Pipeline {
       // Where this LOD switches in (share of screen height): the config's own screen size, else where its
       // measured error covers lod_switch.error_px pixels; never above the previous LOD's (a valid MSFT_lod
       // series).
-      double coverage = spec.target.kind == TargetKind::screen_size
-                            ? spec.target.screen.screen_coverage()
-                            : coverage_for_error(e.hausdorff_rel(), config_.lod_switch.error_px,
-                                                 config_.lod_switch.screen_height_px);
+      double coverage =
+          spec.target.kind == TargetKind::screen_size
+              ? spec.target.screen.screen_coverage()
+              : coverage_for_error(e.hausdorff_rel(), config_.lod_switch.error_px, config_.lod_switch.screen_height_px);
       coverage = std::clamp(coverage, 0.0, coverage_above);
       coverage_above = coverage;
       job.coverage.push_back(coverage);
 
-      lods.push_back({{"level", k + 1},
-                      {"from", spec.from == LodFrom::previous ? "previous" : "source"},
-                      {"target", target_json(spec.target)},
-                      {"target_triangles", target_triangles_json(spec.target, job.triangles)},
-                      {"triangles", triangles},
-                      {"vertices", vertices},
-                      {"ratio", double(triangles) / double(job.triangles)},
-                      {"error_bound_abs", finite(bound)},
-                      {"error_bound_rel", finite(job.diagonal > 0 ? bound / job.diagonal : 0.0)},
-                      // certified: an upper bound on the LOD's distance to the source; measured: met by
-                      // the budget's samples where the bound could not be refined; qem: a ranking only.
-                      {"error_bound_kind", verified ? (certified ? "certified" : "measured") : "qem"},
-                      {"budget", budget_json(spec.target, job.triangles, triangles, k == 0 ? job.triangles : previous,
-                                             k, stops, verified && met, undone, job.shows_previous[k], floors)},
-                      {"seam_stage", seam_stage_name(seam_stage)},
-                      {"mean_rel", finite(e.mean_rel())},
-                      {"rms_rel", finite(e.rms_rel())},
-                      {"hausdorff_rel", finite(e.hausdorff_rel())},
-                      {"normal_deviation_mean_deg", finite(e.normal_deviation_mean_deg)},
-                      {"attributes", attribute_metrics(e, job.sources, job.levels[k], jobs_, job.stop_request())},
-                      {"quad_fraction", finite(quads.quad_fraction)},
-                      {"irregular_vertices", quads.irregular_vertices},
-                      {"stop_reason", stop},
-                      {"seconds", seconds},
-                      {"screen_coverage", coverage},
-                      {"shows_previous", job.shows_previous[k]}});
+      lods.push_back(
+          {{"level", k + 1},
+           {"from", spec.from == LodFrom::previous ? "previous" : "source"},
+           {"target", target_json(spec.target)},
+           {"target_triangles", target_triangles_json(spec.target, target_source)},
+           {"triangles", triangles},
+           {"vertices", vertices},
+           {"ratio", double(triangles) / double(job.triangles)},
+           {"error_bound_abs", finite(bound)},
+           {"error_bound_rel", finite(job.diagonal > 0 ? bound / job.diagonal : 0.0)},
+           // certified: an upper bound on the LOD's distance to the source; measured: met by
+           // the budget's samples where the bound could not be refined; qem: a ranking only.
+           {"error_bound_kind", verified ? (certified ? "certified" : "measured") : "qem"},
+           {"budget", budget_json(spec.target, target_source, target_triangles, k == 0 ? job.triangles : previous, k,
+                                  stops, verified && met, undone, job.shows_previous[k], floors)},
+           {"seam_stage", seam_stage_name(seam_stage)},
+           {"mean_rel", finite(e.mean_rel())},
+           {"rms_rel", finite(e.rms_rel())},
+           {"hausdorff_rel", finite(e.hausdorff_rel())},
+           {"normal_deviation_mean_deg", finite(e.normal_deviation_mean_deg)},
+           {"attributes", attribute_metrics(e, job.sources, job.levels[k], jobs_, job.stop_request())},
+           {"quad_fraction", finite(quads.quad_fraction)},
+           {"irregular_vertices", quads.irregular_vertices},
+           {"stop_reason", stop},
+           {"seconds", seconds},
+           {"screen_coverage", coverage},
+           {"shows_previous", job.shows_previous[k]}});
     }
     job.coverage.push_back(0.0);  // the coarsest LOD is never culled
     for (std::size_t k = 1; k < lods.size(); ++k) {
@@ -900,8 +975,9 @@ class Pipeline {
       const Mesh lod = io::world_surface(placed);
       const EvalResult e = evaluate_lod(job, source, lod);
       // Volume change in per cent of the source's (bounding LODs grow, occluders shrink); null for an open source.
-      const Json volume_change =
-          closed && source_volume > 0 ? Json(finite(100.0 * (signed_volume(lod) / source_volume - 1.0))) : Json(nullptr);
+      const Json volume_change = closed && source_volume > 0
+                                     ? Json(finite(100.0 * (signed_volume(lod) / source_volume - 1.0)))
+                                     : Json(nullptr);
 
       const bool collision = spec.kind == ConservativeKind::collision;
       const Json target = spec.target ? target_json(*spec.target)
@@ -937,8 +1013,8 @@ class Pipeline {
                      {"mode", collision ? "bounding" : "occluder"},
                      {"target", target},
                      {"target_triangles", target_triangles},
-                     {"max_volume_growth_pct", spec.max_volume_growth_pct >= 0 ? Json(spec.max_volume_growth_pct)
-                                                                               : Json(nullptr)},
+                     {"max_volume_growth_pct",
+                      spec.max_volume_growth_pct >= 0 ? Json(spec.max_volume_growth_pct) : Json(nullptr)},
                      {"triangles", triangles},
                      {"vertices", vertices},
                      {"ratio", double(triangles) / double(job.triangles)},
@@ -968,9 +1044,10 @@ class Pipeline {
       job.record["outputs"] = cache_.publish(staging, fs::path(job.path).parent_path());
       if (job.record.contains("conservative_lods")) {
         for (Json& entry : job.record["conservative_lods"]) {
-          const ConservativeKind kind = entry["kind"] == "collision" ? ConservativeKind::collision
-                                                                     : ConservativeKind::occluder;
-          const std::string stem = fs::path(conservative_file_name(fs::path(job.path).filename(), kind)).stem().string();
+          const ConservativeKind kind =
+              entry["kind"] == "collision" ? ConservativeKind::collision : ConservativeKind::occluder;
+          const std::string stem =
+              fs::path(conservative_file_name(fs::path(job.path).filename(), kind)).stem().string();
           for (const Json& o : job.record["outputs"]) {
             if (fs::path(o.get<std::string>()).stem() == stem) entry["outputs"].push_back(o);
           }
@@ -1010,8 +1087,21 @@ class Pipeline {
     try {
       io::Asset placed = with_meshes(job.asset, job.sources);
       const Mesh source = io::world_surface(placed);
-      const io::PictureFrame frame = io::frame_mesh(source, *io::find_picture_view("iso"));
-      job.picture_png.push_back(io::encode_png(io::render_picture(source, frame, kPictureSize)));
+      // A terrain is seen from above, each patch coloured by its share of a full patch's triangles.
+      const bool terrain = !job.terrain_patch_surface.empty();
+      const io::PictureFrame frame = io::frame_mesh(source, *io::find_picture_view(terrain ? "top" : "iso"));
+      auto colours = [&](std::size_t level, const std::vector<Mesh>& meshes) {
+        std::vector<std::array<std::uint8_t, 3>> out;
+        if (!terrain) return out;
+        const double cells = static_cast<double>(job.cls->terrain->patch_cells);
+        for (std::size_t m = 0; m < meshes.size(); ++m) {
+          const double share = static_cast<double>(job.terrain_patch_surface[level][m]) / (2.0 * cells * cells);
+          out.insert(out.end(), meshes[m].triangle_count(), terrain::share_colour(share));
+        }
+        return out;
+      };
+      job.picture_png.push_back(
+          io::encode_png(io::render_picture(source, frame, kPictureSize, colours(0, job.sources))));
       for (std::size_t k = 0; k < job.levels.size(); ++k) {
         if (job.deadline && Clock::now() > *job.deadline) {  // the asset fails anyway
           job.picture_png.clear();
@@ -1022,7 +1112,8 @@ class Pipeline {
           continue;
         }
         placed.meshes = job.levels[k];
-        job.picture_png.push_back(io::encode_png(io::render_picture(io::world_surface(placed), frame, kPictureSize)));
+        job.picture_png.push_back(io::encode_png(
+            io::render_picture(io::world_surface(placed), frame, kPictureSize, colours(k + 1, job.levels[k]))));
       }
     } catch (const std::exception& e) {
       job.picture_png.clear();
@@ -1082,16 +1173,17 @@ class Pipeline {
 
  private:
   void write_outputs(Job& job, const fs::path& staging) {
-    const fs::path name = fs::path(job.path).filename();
+    // A height map's LODs are glTF: "hills.r16" → "hills.glb".
+    const fs::path name =
+        job.cls->terrain ? fs::path(job.path).filename().replace_extension(".glb") : fs::path(job.path).filename();
     const io::Format format = job.asset.format;
     const GltfLods mode = config_.output.gltf_lods;
     if (is_gltf(format) && mode != GltfLods::files) {
       io::LodChain chain{
           .levels = job.levels, .screen_coverage = job.coverage, .shows_previous = job.shows_previous, .separate = {}};
       for (std::size_t c = 0; c < job.conservative.size(); ++c) {
-        chain.separate.push_back(
-            {.suffix = std::string("_") + conservative_kind_name(job.cls->conservative[c].kind),
-             .meshes = job.conservative[c]});
+        chain.separate.push_back({.suffix = std::string("_") + conservative_kind_name(job.cls->conservative[c].kind),
+                                  .meshes = job.conservative[c]});
       }
       io::save_gltf_lods(with_meshes(job.asset, job.sources), chain, staging / name);
     }
@@ -1205,6 +1297,7 @@ bool supported(const fs::path& p) {
 bool companion_file(const fs::path& p) {
   const std::string name = p.filename().string();
   if (!name.empty() && name[0] == '.') return true;
+  if (p.extension() == ".json" && io::is_heightmap_path(p.stem())) return true;  // a height map's sidecar
   std::string ext = p.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
   for (const char* e : {".bin", ".mtl", ".png", ".jpg", ".jpeg", ".ktx2", ".webp", ".dds", ".tga", ".basis"}) {
@@ -1219,7 +1312,7 @@ std::uint64_t asset_bytes(const fs::path& file) {
   std::error_code ec;
   std::uint64_t bytes = fs::file_size(file, ec);
   if (ec) return 0;
-  if (io::format_from_path(file) != io::Format::gltf) return bytes;
+  if (io::is_heightmap_path(file) || io::format_from_path(file) != io::Format::gltf) return bytes;
   try {
     const Json doc = Json::parse(io::read_file(file), nullptr, false);
     if (doc.is_object() && doc.contains("buffers") && doc["buffers"].is_array()) {
@@ -1266,6 +1359,8 @@ std::uint64_t footprint_per_file_byte(io::Format format) {
 }  // namespace
 
 std::uint64_t estimate_footprint(const fs::path& file) {
+  // A height map: about 300 bytes of meshes (every level, the copies for output) per byte of samples.
+  if (io::is_heightmap_path(file)) return asset_bytes(file) * 300 + kFootprintOverhead;
   io::Format format;
   try {
     format = io::format_from_path(file);
@@ -1387,6 +1482,8 @@ LibraryScan scan_library(const fs::path& input_dir) {
       const std::string rel = it->path().lexically_relative(input_dir).generic_string();
       if (supported(it->path()))
         out.assets.push_back(rel);
+      else if (io::is_heightmap_path(it->path()))
+        out.heightmaps.push_back(rel);
       else if (!companion_file(it->path()))
         out.unsupported.push_back(rel);
     }
@@ -1395,6 +1492,7 @@ LibraryScan scan_library(const fs::path& input_dir) {
   std::sort(out.assets.begin(), out.assets.end());
   std::sort(out.skipped.begin(), out.skipped.end());
   std::sort(out.unsupported.begin(), out.unsupported.end());
+  std::sort(out.heightmaps.begin(), out.heightmaps.end());
   return out;
 }
 
@@ -1407,9 +1505,22 @@ struct Selection {
   std::vector<std::string> paths;
 };
 
-Selection select_assets(const RunOptions& options) {
+Selection select_assets(const BatchConfig& config, const RunOptions& options) {
   Selection sel{scan_library(options.input_dir), {}};
   LibraryScan& scan = sel.scan;
+  // A height map is an asset only where a terrain class takes it; other PNGs are textures, other .r16 files
+  // unsupported.
+  for (std::string& h : scan.heightmaps) {
+    const AssetClass* cls = match_class(config, h);
+    if (cls != nullptr && cls->terrain) {
+      scan.assets.push_back(std::move(h));
+    } else if (!companion_file(options.input_dir / h)) {
+      scan.unsupported.push_back(std::move(h));
+    }
+  }
+  scan.heightmaps.clear();
+  std::sort(scan.assets.begin(), scan.assets.end());
+  std::sort(scan.unsupported.begin(), scan.unsupported.end());
   std::error_code ec;
   // An output folder inside the library is not part of it (its LODs would be assets of the next run).
   std::string output_prefix;
@@ -1425,7 +1536,8 @@ Selection select_assets(const RunOptions& options) {
   std::erase_if(scan.unsupported, in_output);
   if (std::all_of(scan.assets.begin(), scan.assets.end(), in_output)) {
     throw io::IoError(options.input_dir,
-                      "the library holds no asset files (.gltf .glb .obj .ply .off .stl)" +
+                      "the library holds no asset files (.gltf .glb .obj .ply .off .stl, or height maps a "
+                      "terrain class takes)" +
                           (scan.unsupported.empty()
                                ? std::string()
                                : ", only " + std::to_string(scan.unsupported.size()) + " file(s) of other types"));
@@ -1451,8 +1563,8 @@ std::string describe_target(const LodTarget& t) {
 bool output_like(const fs::path& p) {
   std::string ext = p.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-  for (const char* e : {".gltf", ".glb", ".bin", ".obj", ".mtl", ".ply", ".off", ".stl", ".png", ".jpg", ".jpeg",
-                        ".ktx2", ".webp"}) {
+  for (const char* e :
+       {".gltf", ".glb", ".bin", ".obj", ".mtl", ".ply", ".off", ".stl", ".png", ".jpg", ".jpeg", ".ktx2", ".webp"}) {
     if (ext == e) return true;
   }
   return false;
@@ -1493,8 +1605,9 @@ std::vector<std::string> stale_outputs(const fs::path& output_dir, const fs::pat
       // its last run did: they are its last good run's. Other files there are never judged.
       const fs::path picture(rel.substr(pictures.size()));
       const std::string name = picture.filename().string();
-      const bool lod_picture = name.size() > 7 && name.starts_with("lod") && name.ends_with(".png") &&
-                               std::all_of(name.begin() + 3, name.end() - 4, [](char c) { return c >= '0' && c <= '9'; });
+      const bool lod_picture =
+          name.size() > 7 && name.starts_with("lod") && name.ends_with(".png") &&
+          std::all_of(name.begin() + 3, name.end() - 4, [](char c) { return c >= '0' && c <= '9'; });
       if (lod_picture && !library.count(picture.parent_path().generic_string())) stale.push_back(rel);
       continue;
     }
@@ -1509,8 +1622,8 @@ void remove_outputs(const fs::path& output_dir, const std::vector<std::string>& 
   std::error_code ec;
   for (const std::string& f : files) {
     fs::remove(output_dir / f, ec);
-    for (fs::path dir = (output_dir / f).parent_path(); dir != output_dir && dir.native().size() > output_dir.native().size();
-         dir = dir.parent_path()) {
+    for (fs::path dir = (output_dir / f).parent_path();
+         dir != output_dir && dir.native().size() > output_dir.native().size(); dir = dir.parent_path()) {
       if (!fs::is_empty(dir, ec) || ec || !fs::remove(dir, ec)) break;
     }
   }
@@ -1519,7 +1632,7 @@ void remove_outputs(const fs::path& output_dir, const std::vector<std::string>& 
 }  // namespace
 
 Plan plan_batch(const BatchConfig& config, const RunOptions& options) {
-  Selection sel = select_assets(options);
+  Selection sel = select_assets(config, options);
   const std::string tag =
       options.shard ? std::to_string(options.shard->index) + "-of-" + std::to_string(options.shard->count) : "0-of-1";
   const Cache cache(options.output_dir, tag, /*read_only=*/true);
@@ -1560,8 +1673,8 @@ Plan plan_batch(const BatchConfig& config, const RunOptions& options) {
         return;
       }
       try {
-        const std::string key = cache_key(input_fingerprint(options.input_dir / a.path), class_json.at(cls),
-                                          kAlgorithmVersion);
+        const std::string key =
+            cache_key(input_fingerprint(options.input_dir / a.path), class_json.at(cls), kAlgorithmVersion);
         a.reason = cache.why_stale(a.path, key);
       } catch (const io::IoError& e) {
         a.reason = "cannot be read: " + (e.file() == options.input_dir / a.path ? e.problem() : std::string(e.what()));
@@ -1583,7 +1696,7 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
   const std::string manifest_stem = options.shard ? "lods.shard-" + tag : "lods";
 
   // Scan (sorted), shard, classify.
-  Selection sel = select_assets(options);
+  Selection sel = select_assets(config, options);
   LibraryScan& scan = sel.scan;
   const std::vector<std::string>& paths = sel.paths;
   std::error_code ec;

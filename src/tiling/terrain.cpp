@@ -449,29 +449,33 @@ std::vector<std::string> Options::validate() const {
   return problems;
 }
 
+std::array<std::uint8_t, 3> share_colour(double share) {
+  // Blue, cyan, green, yellow, red at shares 1/1024, 1/181, 1/32, 1/5.7, 1 (log2 steps of 2.5).
+  static constexpr std::array<std::array<double, 3>, 5> kStops{
+      {{40, 70, 200}, {40, 180, 210}, {70, 190, 80}, {235, 210, 60}, {220, 60, 40}}};
+  const double t = (std::log2(std::clamp(share, 1.0 / 1024, 1.0)) + 10.0) / 2.5;  // 0 .. 4
+  const std::size_t i = std::min<std::size_t>(static_cast<std::size_t>(t), 3);
+  const double u = std::clamp(t - static_cast<double>(i), 0.0, 1.0);
+  std::array<std::uint8_t, 3> colour{};
+  for (int c = 0; c < 3; ++c) {
+    colour[c] = static_cast<std::uint8_t>(std::lround(kStops[i][c] + u * (kStops[i + 1][c] - kStops[i][c])));
+  }
+  return colour;
+}
+
 Mesh level_surface(const Result& result, std::size_t level, std::size_t patch_cells,
                    std::vector<std::array<std::uint8_t, 3>>* face_colours) {
   Mesh out;
   out.materials.push_back({});
   out.name = "terrain_level_" + std::to_string(level);
   if (face_colours) face_colours->clear();
-  // Blue, cyan, green, yellow, red at shares 1/1024, 1/181, 1/32, 1/5.7, 1 (log2 steps of 2.5).
-  static constexpr std::array<std::array<double, 3>, 5> kStops{
-      {{40, 70, 200}, {40, 180, 210}, {70, 190, 80}, {235, 210, 60}, {220, 60, 40}}};
   const double full = 2.0 * static_cast<double>(patch_cells) * static_cast<double>(patch_cells);
   for (const Patch& p : result.patches) {
     if (level >= p.lods.size()) continue;
     const Mesh& m = p.lods[level];
     const std::uint32_t base = static_cast<std::uint32_t>(out.vertex_count());
     for (const Vec3f& q : m.positions) out.add_vertex_with_wedge(q);
-    const double share = std::clamp(static_cast<double>(p.surface_triangles[level]) / full, 1.0 / 1024, 1.0);
-    const double t = (std::log2(share) + 10.0) / 2.5;  // 0 .. 4
-    const std::size_t i = std::min<std::size_t>(static_cast<std::size_t>(t), 3);
-    const double u = std::clamp(t - static_cast<double>(i), 0.0, 1.0);
-    std::array<std::uint8_t, 3> colour{};
-    for (int c = 0; c < 3; ++c) {
-      colour[c] = static_cast<std::uint8_t>(std::lround(kStops[i][c] + u * (kStops[i + 1][c] - kStops[i][c])));
-    }
+    const std::array<std::uint8_t, 3> colour = share_colour(static_cast<double>(p.surface_triangles[level]) / full);
     for (std::size_t f = 0; f < p.surface_triangles[level]; ++f) {
       const std::uint32_t b = m.face_offsets[f];
       out.add_face({base + m.wedge_vertex[m.corner_wedge[b]], base + m.wedge_vertex[m.corner_wedge[b + 1]],

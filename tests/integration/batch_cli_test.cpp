@@ -32,7 +32,9 @@ namespace testlib = lodforge::batch::testlib;
 using CliResult = lodforge::testing::CommandResult;
 using lodforge::testing::run_cli;
 
-std::string q(const fs::path& p) { return lodforge::testing::shell_quote(p); }
+std::string q(const fs::path& p) {
+  return lodforge::testing::shell_quote(p);
+}
 
 std::string run_args(const fs::path& config, const fs::path& lib, const fs::path& out, const std::string& more = "") {
   return "run --config " + q(config) + " --input " + q(lib) + " --output " + q(out) + " " + more;
@@ -214,8 +216,7 @@ TEST(BatchCli, MissedBudgetsAreReportedAndFailStrictRuns) {
                            dir / "lib/a/sphere.obj");
   lodforge::io::save_asset(testlib::asset_of({lodforge::testing::make_tetrahedron()}, lodforge::io::Format::obj),
                            dir / "lib/a/tet.obj");
-  std::ofstream(dir / "config.json")
-      << R"({"version": 1, "classes": [{"name": "all", "match": ["**"],
+  std::ofstream(dir / "config.json") << R"({"version": 1, "classes": [{"name": "all", "match": ["**"],
             "lods": [{"ratio": 0.95}, {"ratio": 0.5}, {"max_error": {"relative": 0.05}}]}]})";
   const CliResult r = run_cli(run_args(dir / "config.json", dir / "lib", dir / "out"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
@@ -377,8 +378,11 @@ TEST(BatchCli, EmptyLibraryIsAnErrorAndWritesNothing) {
   std::ofstream(dir / "lib/sub/model.fbx") << "fbx";
   const CliResult only_fbx = run_cli(run_args(testlib::write_config(dir), dir / "lib", dir / "out"));
   EXPECT_EQ(only_fbx.exit_code, 2);
-  EXPECT_NE(only_fbx.output.find("no asset files (.gltf .glb .obj .ply .off .stl), only 1 file(s) of other types"),
-            std::string::npos)
+  EXPECT_NE(
+      only_fbx.output.find(
+          "no asset files (.gltf .glb .obj .ply .off .stl, or height maps a terrain class takes), only 1 file(s) of "
+          "other types"),
+      std::string::npos)
       << only_fbx.output;
   const CliResult file = run_cli(run_args(testlib::write_config(dir), dir / "lib/sub/model.fbx", dir / "out"));
   EXPECT_NE(file.output.find("model.fbx: is a file, not a folder (--input must be the library folder)"),
@@ -435,7 +439,8 @@ TEST(BatchCli, DiffReportsPrintsWhatChangedBetweenTwoRuns) {
 
   const CliResult bad = run_cli("diff-reports " + q(dir / "a.json") + " " + q(config));
   EXPECT_EQ(bad.exit_code, 2);
-  EXPECT_NE(bad.output.find("error: " + config.string() + ": not a lodforge report: "), std::string::npos) << bad.output;
+  EXPECT_NE(bad.output.find("error: " + config.string() + ": not a lodforge report: "), std::string::npos)
+      << bad.output;
   const CliResult missing = run_cli("diff-reports " + q(dir / "a.json") + " " + q(dir / "nope.json"));
   EXPECT_EQ(missing.exit_code, 2);
   EXPECT_NE(missing.output.find("nope.json"), std::string::npos) << missing.output;
@@ -451,8 +456,8 @@ TEST(BatchCli, DryRunPrintsClassTargetsAndRebuildsAndWritesNothing) {
   const CliResult dry = run_cli(run_args(config, lib.root, dir / "out", "--dry-run"));
   EXPECT_EQ(dry.exit_code, 0) << dry.output;
   EXPECT_FALSE(fs::exists(dir / "out"));
-  const std::string prop = *std::find_if(lib.files.begin(), lib.files.end(),
-                                         [](const std::string& p) { return p.rfind("props/", 0) == 0; });
+  const std::string prop =
+      *std::find_if(lib.files.begin(), lib.files.end(), [](const std::string& p) { return p.rfind("props/", 0) == 0; });
   EXPECT_NE(dry.output.find(prop + ": class props; LOD1 ratio 0.5, LOD2 ratio 0.25, LOD3 ratio 0.1; rebuild (not "
                                    "built yet)\n"),
             std::string::npos)
@@ -477,8 +482,7 @@ TEST(BatchCli, StaleOutputsAreReportedAndPrunedWithPrune) {
   const std::string prop = *std::find_if(lib.files.begin(), lib.files.end(), [](const std::string& p) {
     return p.rfind("props/", 0) == 0 && fs::path(p).extension() == ".obj";
   });
-  const fs::path lod1 = dir / "out" / fs::path(prop).parent_path() /
-                        (fs::path(prop).stem().string() + "_LOD1.obj");
+  const fs::path lod1 = dir / "out" / fs::path(prop).parent_path() / (fs::path(prop).stem().string() + "_LOD1.obj");
   ASSERT_TRUE(fs::exists(lod1));
   fs::remove(lib.root / prop);
   const CliResult listed = run_cli(run_args(config, lib.root, dir / "out"));

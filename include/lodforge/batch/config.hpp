@@ -14,14 +14,15 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
-#include <optional>
 #include <nlohmann/json_fwd.hpp>  // callers that build or read documents include <nlohmann/json.hpp>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "lodforge/batch/glob.hpp"
+#include "lodforge/io/heightmap.hpp"
 #include "lodforge/simplify/simplify.hpp"
 #include "lodforge/symmetry/symmetry.hpp"
 
@@ -147,6 +148,16 @@ struct ConservativeSpec {
   LodOptions options;
 };
 
+// A terrain class (`"terrain": {...}`, docs/terrain.md): the height maps it matches (PNG, .r16) are its assets,
+// each cut into patches whose LOD chains stitch without cracks. Its LODs are ratio targets, each a fraction of
+// a full patch's triangles; a PNG that no terrain class matches stays a texture.
+struct TerrainSpec {
+  std::size_t patch_cells = 64;  // cells per patch side
+  Conservative conservative = Conservative::occluder;
+  bool skirts = true;
+  io::HeightMapLayout layout;  // what a map's own sidecar JSON does not say
+};
+
 struct AssetClass {
   std::string name;
   std::string description;
@@ -155,6 +166,7 @@ struct AssetClass {
   std::vector<LodSpec> lods;  // LOD1..LODn; LOD0 is the source
   // `collision` and `occluder` (own, else inherited from `defaults`): at most one of each, collision first.
   std::vector<ConservativeSpec> conservative;
+  std::optional<TerrainSpec> terrain;  // a terrain class: no `collision` / `occluder` entries
 
   bool matches(std::string_view relative_path) const;
 };
@@ -198,7 +210,7 @@ struct BatchConfig {
   OutputOptions output;
   RunLimits limits;
   ReportOptions report;
-  LodSwitch lod_switch;             // `defaults.lod_switch`
+  LodSwitch lod_switch;  // `defaults.lod_switch`
   // `defaults.collision` / `defaults.occluder` as JSON text (empty: none): each class without its own entry
   // reads it against its own options.
   std::string default_collision, default_occluder;

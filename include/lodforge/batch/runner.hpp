@@ -165,6 +165,8 @@ struct LibraryScan {
   // Files of no format lodforge reads (.fbx, .txt), as sorted relative paths; companions of assets (.bin
   // buffers, textures, .mtl) and hidden files are not listed.
   std::vector<std::string> unsupported;
+  // PNG and .r16 files: assets where a terrain class takes them (the run decides, knowing the config).
+  std::vector<std::string> heightmaps;
 };
 
 // The supported files under `input_dir`. Throws io::IoError when the folder itself cannot be read.

@@ -77,6 +77,9 @@ Result build(const io::HeightMap& map, const Options& options, const Result* pre
 Mesh level_surface(const Result& result, std::size_t level, std::size_t patch_cells,
                    std::vector<std::array<std::uint8_t, 3>>* face_colours = nullptr);
 
+// The colour level_surface gives a patch with `share` of a full patch's triangles.
+std::array<std::uint8_t, 3> share_colour(double share);
+
 // The full-resolution surface of the whole map (no skirts), positions as the patches have them: for measuring.
 Mesh full_surface(const io::HeightMap& map);
 

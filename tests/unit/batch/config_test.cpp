@@ -599,7 +599,7 @@ TEST(BatchConfigErrors, UnknownDefaultsKeyListsAllowedKeys) {
   EXPECT_EQ(error_with("/defaults/ratio", 0.5),
             expected(std::string("defaults.ratio: unknown key; allowed: ") + kClassOptionKeys +
                      ", gltf_lods, post_process, write_source_lod0, asset_timeout_s, report_pictures, lod_switch, "
-                     "collision, occluder"));
+                     "collision, occluder, terrain"));
 }
 
 TEST(BatchConfigErrors, OutputOptions) {
@@ -940,10 +940,10 @@ TEST(BatchConfigErrors, ClassStructure) {
   EXPECT_EQ(error_with("/classes/0", 5), expected("classes[0]: must be an object, got 5"));
   EXPECT_EQ(error_with("/classes/0/colour", "red"),
             expected("classes[0].colour: unknown key; allowed: name, description, match, options, lods, "
-                     "collision, occluder"));
+                     "collision, occluder, terrain"));
   EXPECT_EQ(error_with("/classes/0/lod", Json::array()),
             expected("classes[0].lod: unknown key (did you mean \"lods\"?); allowed: name, description, match, "
-                     "options, lods, collision, occluder"));
+                     "options, lods, collision, occluder, terrain"));
   EXPECT_EQ(error_without("/classes/0/name"), expected("classes[0].name: missing (required)"));
   EXPECT_EQ(error_with("/classes/0/name", 3), expected("classes[0].name: must be a string, got 3"));
   EXPECT_EQ(error_with("/classes/0/name", ""), expected("classes[0].name: must not be empty"));
