@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "heightmap_fixtures.hpp"
 #include "lodforge/io/asset.hpp"
 #include "lodforge/io/file.hpp"
 #include "test_support.hpp"
@@ -14,17 +15,7 @@ namespace lodforge {
 namespace {
 
 std::filesystem::path write_hills(const std::filesystem::path& dir) {
-  std::string bytes;
-  for (int r = 0; r < 65; ++r) {
-    for (int c = 0; c < 97; ++c) {
-      const auto v = static_cast<std::uint16_t>(3000 + 800 * std::sin(0.11 * c) * std::cos(0.07 * r) + (c * r) % 17);
-      bytes.push_back(static_cast<char>(v & 0xff));
-      bytes.push_back(static_cast<char>(v >> 8));
-    }
-  }
-  const auto path = dir / "hills_97x65.r16";
-  io::write_file_atomic(path, bytes);
-  return path;
+  return testing::write_hills_r16(dir);
 }
 
 TEST(CliTerrain, WritesOneGltfWithANodePerPatchAndPictures) {

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "heightmap_fixtures.hpp"
 #include "library_fixture.hpp"
 #include "lodforge/batch/config.hpp"
 #include "lodforge/batch/runner.hpp"
@@ -26,15 +27,7 @@ using Json = nlohmann::json;
 // A 97 x 65 raw map of rolling hills (its size from the name), and a 16-bit PNG of 65 x 65.
 void write_maps(const fs::path& root) {
   fs::create_directories(root / "terrain");
-  std::string bytes;
-  for (int r = 0; r < 65; ++r) {
-    for (int c = 0; c < 97; ++c) {
-      const auto v = static_cast<std::uint16_t>(3000 + 800 * std::sin(0.11 * c) * std::cos(0.07 * r) + (c * r) % 17);
-      bytes.push_back(static_cast<char>(v & 0xff));
-      bytes.push_back(static_cast<char>(v >> 8));
-    }
-  }
-  io::write_file_atomic(root / "terrain/hills_97x65.r16", bytes);
+  testing::write_hills_r16(root / "terrain");
   io::HeightMap png;
   png.width = png.height = 65;
   for (int r = 0; r < 65; ++r) {
