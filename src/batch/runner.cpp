@@ -690,7 +690,27 @@ class Pipeline {
     if (const std::vector<std::string> problems = o.validate(); !problems.empty()) {
       throw std::runtime_error("terrain: " + joined(problems));
     }
-    job.terrain = terrain::build(map, o);
+    // The last build of this map (the cache folder keeps it): patches whose samples did not change are copied
+    // from it. Unreadable or from other settings, it only costs a full build.
+    const fs::path saved = options_.output_dir / kCacheFolder / "terrain" / (Hasher().bytes(job.path).hex() + ".bin");
+    std::optional<terrain::Result> previous;
+    if (!options_.force) {
+      try {
+        previous = terrain::decode_result(io::read_file(saved));
+      } catch (const io::IoError&) {
+      }
+    }
+    job.terrain = terrain::build(map, o, previous ? &*previous : nullptr);
+    previous.reset();
+    if (const std::string bytes = terrain::encode_result(*job.terrain); !bytes.empty()) {
+      std::error_code ec;
+      fs::create_directories(saved.parent_path(), ec);
+      try {
+        io::write_file_atomic(saved, bytes, io::Durability::none);
+      } catch (const io::IoError& e) {
+        job.record["warnings"].push_back(std::string("terrain patches not kept for the next run: ") + e.what());
+      }
+    }
     job.asset = io::Asset{};
     job.asset.source = job.file;
     job.asset.format = io::Format::glb;
@@ -708,6 +728,7 @@ class Pipeline {
                              {"height", map.height},
                              {"patches", {job.terrain->patches_x, job.terrain->patches_z}},
                              {"patch_cells", spec.patch_cells},
+                             {"rebuilt_patches", job.terrain->rebuilt},
                              {"surface_triangles", job.terrain_surface},
                              {"warnings", map.warnings}};
   }
@@ -928,8 +949,8 @@ class Pipeline {
     job.coverage.push_back(0.0);  // the coarsest LOD is never culled
     for (std::size_t k = 1; k < lods.size(); ++k) {
       if (lods[k]["triangles"].get<std::size_t>() > lods[k - 1]["triangles"].get<std::size_t>()) {
-        job.record["warnings"] = Json::array({"LOD " + std::to_string(k + 1) + " has more triangles than LOD " +
-                                              std::to_string(k) + " (its targets mix kinds)"});
+        job.record["warnings"].push_back("LOD " + std::to_string(k + 1) + " has more triangles than LOD " +
+                                         std::to_string(k) + " (its targets mix kinds)");
         break;  // said once per asset
       }
     }

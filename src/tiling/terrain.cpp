@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <map>
 #include <sstream>
@@ -461,6 +462,133 @@ std::array<std::uint8_t, 3> share_colour(double share) {
     colour[c] = static_cast<std::uint8_t>(std::lround(kStops[i][c] + u * (kStops[i + 1][c] - kStops[i][c])));
   }
   return colour;
+}
+
+namespace {
+
+constexpr std::string_view kResultMagic = "lodforge-terrain-result-1\n";
+
+class Writer {
+ public:
+  void u64(std::uint64_t x) { raw(&x, sizeof x); }
+  void str(std::string_view t) {
+    u64(t.size());
+    out_.append(t);
+  }
+  template <typename T>
+  void vec(const std::vector<T>& v) {
+    u64(v.size());
+    if (!v.empty()) raw(v.data(), v.size() * sizeof(T));
+  }
+  void raw(const void* p, std::size_t n) { out_.append(static_cast<const char*>(p), n); }
+  std::string take() { return std::move(out_); }
+
+ private:
+  std::string out_;
+};
+
+class Reader {
+ public:
+  explicit Reader(std::string_view in) : in_(in) {}
+  bool u64(std::uint64_t& x) { return raw(&x, sizeof x); }
+  bool size(std::size_t& x) {
+    std::uint64_t v = 0;
+    if (!u64(v) || v > in_.size()) return false;  // no count exceeds the bytes left
+    x = static_cast<std::size_t>(v);
+    return true;
+  }
+  bool str(std::string& t) {
+    std::size_t n = 0;
+    if (!size(n) || n > in_.size() - at_) return false;
+    t.assign(in_.substr(at_, n));
+    at_ += n;
+    return true;
+  }
+  template <typename T>
+  bool vec(std::vector<T>& v) {
+    std::size_t n = 0;
+    if (!size(n) || n > (in_.size() - at_) / sizeof(T)) return false;
+    v.resize(n);
+    return n == 0 || raw(v.data(), n * sizeof(T));
+  }
+  bool raw(void* p, std::size_t n) {
+    if (n > in_.size() - at_) return false;
+    std::memcpy(p, in_.data() + at_, n);
+    at_ += n;
+    return true;
+  }
+  bool done() const { return at_ == in_.size(); }
+
+ private:
+  std::string_view in_;
+  std::size_t at_ = 0;
+};
+
+// What a patch mesh of build() holds: positions, wedges, faces, one plain material, a name.
+bool plain(const Mesh& m) {
+  return m.skin.empty() && m.priority.empty() && m.normals.empty() && m.tangents.empty() && m.uvs.empty() &&
+         m.colors.empty() && m.color_components.empty() && m.custom.empty() && m.morph_targets.empty() &&
+         m.morph_default_weights.empty() && m.face_group.empty() && m.groups.empty() && m.formats.empty() &&
+         std::all_of(m.materials.begin(), m.materials.end(), [](const MaterialSlot& s) { return s == MaterialSlot{}; });
+}
+
+}  // namespace
+
+std::string encode_result(const Result& result) {
+  Writer w;
+  w.raw(kResultMagic.data(), kResultMagic.size());
+  w.u64(result.patches_x);
+  w.u64(result.patches_z);
+  w.str(result.settings);
+  w.u64(result.patches.size());
+  for (const Patch& p : result.patches) {
+    for (const std::size_t x : {p.column, p.row, p.first_column, p.first_row, p.columns, p.rows}) w.u64(x);
+    w.vec(p.inputs);
+    std::vector<std::uint64_t> surface(p.surface_triangles.begin(), p.surface_triangles.end());
+    w.vec(surface);
+    w.u64(p.lods.size());
+    for (const Mesh& m : p.lods) {
+      if (!plain(m)) return {};
+      w.str(m.name);
+      w.u64(m.materials.size());
+      w.vec(m.positions);
+      w.vec(m.wedge_vertex);
+      w.vec(m.face_offsets);
+      w.vec(m.corner_wedge);
+      w.vec(m.face_material);
+    }
+  }
+  return w.take();
+}
+
+std::optional<Result> decode_result(std::string_view bytes) {
+  if (bytes.substr(0, kResultMagic.size()) != kResultMagic) return std::nullopt;
+  Reader r(bytes.substr(kResultMagic.size()));
+  Result out;
+  std::size_t count = 0;
+  if (!r.size(out.patches_x) || !r.size(out.patches_z) || !r.str(out.settings) || !r.size(count)) return std::nullopt;
+  out.patches.resize(count);
+  for (Patch& p : out.patches) {
+    for (std::size_t* x : {&p.column, &p.row, &p.first_column, &p.first_row, &p.columns, &p.rows}) {
+      if (!r.size(*x)) return std::nullopt;
+    }
+    std::vector<std::uint64_t> surface;
+    std::size_t levels = 0;
+    if (!r.vec(p.inputs) || !r.vec(surface) || !r.size(levels)) return std::nullopt;
+    p.surface_triangles.assign(surface.begin(), surface.end());
+    p.lods.resize(levels);
+    for (Mesh& m : p.lods) {
+      std::size_t materials = 0;
+      if (!r.str(m.name) || !r.size(materials) || !r.vec(m.positions) || !r.vec(m.wedge_vertex) ||
+          !r.vec(m.face_offsets) || !r.vec(m.corner_wedge) || !r.vec(m.face_material)) {
+        return std::nullopt;
+      }
+      m.materials.assign(materials, MaterialSlot{});
+    }
+    p.rebuilt = false;
+  }
+  if (!r.done()) return std::nullopt;
+  return out;
 }
 
 Mesh level_surface(const Result& result, std::size_t level, std::size_t patch_cells,

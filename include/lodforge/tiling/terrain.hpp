@@ -21,7 +21,9 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "lodforge/core/mesh.hpp"
@@ -70,6 +72,14 @@ struct Result {
 // Cuts, simplifies and stitches `map`. `previous`: an earlier result for the same map size and options; a
 // patch whose inputs are unchanged is copied from it. Throws std::invalid_argument on invalid options.
 Result build(const io::HeightMap& map, const Options& options, const Result* previous = nullptr);
+
+// `result` as bytes, for a later build's `previous` across runs (the batch runner keeps it in its cache
+// folder); empty when a patch mesh holds what the format does not keep (attributes, materials), which build()
+// never makes.
+std::string encode_result(const Result& result);
+// The result encode_result() wrote, bit for bit; nullopt for bytes that are not one (truncated, another
+// version), so that a damaged file only costs a full build.
+std::optional<Result> decode_result(std::string_view bytes);
 
 // Every patch's surface at `level` (skirts left out) as one mesh, and per face the colour of its patch's
 // triangle count: the share of a full patch's triangles on a log scale from 1/1024 (blue) through 1/32 (green)

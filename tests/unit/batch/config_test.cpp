@@ -599,7 +599,7 @@ TEST(BatchConfigErrors, UnknownDefaultsKeyListsAllowedKeys) {
   EXPECT_EQ(error_with("/defaults/ratio", 0.5),
             expected(std::string("defaults.ratio: unknown key; allowed: ") + kClassOptionKeys +
                      ", gltf_lods, post_process, write_source_lod0, asset_timeout_s, report_pictures, lod_switch, "
-                     "collision, occluder, terrain"));
+                     "collision, occluder"));
 }
 
 TEST(BatchConfigErrors, OutputOptions) {

@@ -119,6 +119,42 @@ TEST(TerrainRunner, SidecarJoinsTheCacheKey) {
   EXPECT_TRUE(std::find(r.unsupported.begin(), r.unsupported.end(), "terrain/ramp.png.json") == r.unsupported.end());
 }
 
+TEST(TerrainRunner, AChangedRegionRebuildsOnlyItsPatchesAcrossRuns) {
+  const fs::path dir = testing::temp_dir("terrain_runner_patches");
+  const fs::path lib = dir / "lib";
+  write_maps(lib);
+  const BatchConfig cfg = terrain_config();
+  RunResult r = run_batch(cfg, {.input_dir = lib, .output_dir = dir / "out", .jobs = 2});
+  ASSERT_EQ(r.succeeded, 2u);
+  EXPECT_EQ(record_of(r.report, "terrain/hills_97x65.r16")["terrain"]["rebuilt_patches"], 6);
+  // A bump inside patch (1, 1) of the raw map (samples 40..55 both ways), away from its walls.
+  const fs::path raw = lib / "terrain/hills_97x65.r16";
+  std::string bytes = io::read_file(raw);
+  for (std::size_t row = 40; row < 56; ++row) {
+    for (std::size_t c = 40; c < 56; ++c)
+      bytes[2 * (row * 97 + c) + 1] = static_cast<char>(bytes[2 * (row * 97 + c) + 1] + 2);
+  }
+  io::write_file_atomic(raw, bytes);
+  r = run_batch(cfg, {.input_dir = lib, .output_dir = dir / "out", .jobs = 2});
+  EXPECT_EQ(r.cache_hits, 1u);  // the PNG
+  const Json& hills = record_of(r.report, "terrain/hills_97x65.r16");
+  EXPECT_EQ(hills["cache_hit"], false);
+  EXPECT_EQ(hills["terrain"]["rebuilt_patches"], 1);
+  // The same bytes as a build from nothing.
+  r = run_batch(cfg, {.input_dir = lib, .output_dir = dir / "fresh", .jobs = 1});
+  EXPECT_EQ(record_of(r.report, "terrain/hills_97x65.r16")["terrain"]["rebuilt_patches"], 6);
+  EXPECT_EQ(io::read_file(dir / "out/terrain/hills_97x65.glb"), io::read_file(dir / "fresh/terrain/hills_97x65.glb"));
+  // A damaged saved result costs a full build, nothing else (the map changed back, so it is rebuilt).
+  for (const auto& e : fs::directory_iterator(dir / "out/.lodforge-cache/terrain")) {
+    io::write_file_atomic(e.path(), "lodforge-terrain-result-1\n???");
+  }
+  write_maps(lib);
+  r = run_batch(cfg, {.input_dir = lib, .output_dir = dir / "out", .jobs = 2});
+  EXPECT_EQ(r.failed, 0u);
+  EXPECT_EQ(record_of(r.report, "terrain/hills_97x65.r16")["cache_hit"], false);
+  EXPECT_EQ(record_of(r.report, "terrain/hills_97x65.r16")["terrain"]["rebuilt_patches"], 6);
+}
+
 TEST(TerrainRunner, RawMapsNoTerrainClassTakesAreUnsupported) {
   const fs::path dir = testing::temp_dir("terrain_runner_unmatched");
   const fs::path lib = dir / "lib";

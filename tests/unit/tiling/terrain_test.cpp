@@ -380,6 +380,43 @@ TEST(Terrain, AChangedRegionRebuildsOnlyThePatchesItTouches) {
   EXPECT_EQ(terrain::build(map, o, &fresh).rebuilt, 16u);
 }
 
+TEST(Terrain, EncodedResultsDecodeBitForBitAndServeAsPrevious) {
+  io::HeightMap map = rough_map(97, 65);
+  terrain::Options o;
+  o.patch_cells = 32;
+  o.levels = {{0.25, -1}, {0.0625, -1}};
+  const terrain::Result first = terrain::build(map, o);
+  const std::string bytes = terrain::encode_result(first);
+  ASSERT_FALSE(bytes.empty());
+  const std::optional<terrain::Result> back = terrain::decode_result(bytes);
+  ASSERT_TRUE(back);
+  EXPECT_EQ(back->patches_x, first.patches_x);
+  EXPECT_EQ(back->settings, first.settings);
+  ASSERT_EQ(back->patches.size(), first.patches.size());
+  for (std::size_t i = 0; i < first.patches.size(); ++i) {
+    EXPECT_EQ(back->patches[i].lods, first.patches[i].lods) << i;
+    EXPECT_EQ(back->patches[i].inputs, first.patches[i].inputs) << i;
+    EXPECT_EQ(back->patches[i].surface_triangles, first.patches[i].surface_triangles) << i;
+  }
+  // A decoded result is a previous like any: one changed patch rebuilt, the rest the same as a full build.
+  for (std::size_t r = 40; r < 56; ++r) {
+    for (std::size_t c = 40; c < 56; ++c) map.samples[r * map.width + c] += 300;
+  }
+  const terrain::Result again = terrain::build(map, o, &*back);
+  EXPECT_EQ(again.rebuilt, 1u);
+  const terrain::Result fresh = terrain::build(map, o);
+  for (std::size_t i = 0; i < fresh.patches.size(); ++i) EXPECT_EQ(fresh.patches[i].lods, again.patches[i].lods) << i;
+  // Damaged bytes are no result.
+  EXPECT_FALSE(terrain::decode_result(bytes.substr(0, bytes.size() - 3)));
+  EXPECT_FALSE(terrain::decode_result(bytes + "x"));
+  EXPECT_FALSE(terrain::decode_result("lodforge-terrain-result-0\n"));
+  EXPECT_FALSE(terrain::decode_result(""));
+  // A mesh with what the format does not keep is not encoded.
+  terrain::Result odd = first;
+  odd.patches[0].lods[0].normals.assign(odd.patches[0].lods[0].wedge_count(), Vec3f{{0, 1, 0}});
+  EXPECT_TRUE(terrain::encode_result(odd).empty());
+}
+
 TEST(Terrain, SameOutputForAnyThreadCount) {
   const io::HeightMap map = rough_map(97, 65);
   terrain::Options o;
