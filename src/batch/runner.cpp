@@ -764,7 +764,8 @@ class Pipeline {
       for (terrain::Patch& p : job.terrain->patches) {
         if (p.lods[0].face_count() == 0) continue;
         auto chain = std::make_shared<MeshChain>();
-        for (std::size_t k = 1; k < p.lods.size(); ++k) chain->push_back(MeshLod{.mesh = std::move(p.lods[k])});
+        for (std::size_t k = 1; k < p.lods.size(); ++k)
+          chain->push_back(MeshLod{.mesh = std::move(p.lods[k]), .error_bound_abs = 0, .budget = {}});
         job.chains.push_back(std::move(chain));
       }
       job.terrain.reset();
