@@ -190,6 +190,16 @@ const char* version() { return "0.1.0"; }
 int exit_code() { return g_exit_code; }
 void set_exit_code(int code) { g_exit_code = std::max(g_exit_code, code); }
 
+CLI::Option* add_conservative_option(CLI::App* cmd, std::string& name, const std::string& help) {
+  return cmd->add_option("--conservative", name, help)
+      ->default_val(name)
+      ->check(CLI::IsMember({"none", "bounding", "occluder"}));
+}
+
+Conservative conservative_mode(const std::string& name) {
+  return name == "bounding" ? Conservative::bounding : name == "occluder" ? Conservative::occluder : Conservative::none;
+}
+
 void register_info(CLI::App& app) {
   auto inputs = std::make_shared<std::vector<std::string>>();
   auto symmetry_plane = std::make_shared<std::string>("auto");
@@ -321,12 +331,10 @@ void register_simplify(CLI::App& app) {
   cmd->add_option("--skin-max-distance", a->opt.skin_max_distance,
                   "vertices of different dominant bones merge only below this L1 weight distance")
       ->default_val(a->opt.skin_max_distance);
-  cmd->add_option("--conservative", a->conservative,
-                  "none | bounding | occluder: a LOD that contains the input (collision) or lies inside it "
-                  "(occlusion culling); edge_collapse and multiple_choice engines; on open meshes the rim keeps "
-                  "its outline (docs/conservative.md)")
-      ->default_val(a->conservative)
-      ->check(CLI::IsMember({"none", "bounding", "occluder"}));
+  add_conservative_option(cmd, a->conservative,
+                          "none | bounding | occluder: a LOD that contains the input (collision) or lies inside it "
+                          "(occlusion culling); edge_collapse and multiple_choice engines; on open meshes the rim "
+                          "keeps its outline (docs/conservative.md)");
   cmd->add_option("--max-volume-growth", a->max_volume_growth_pct,
                   "PCT: with --conservative, stop before the LOD's volume grows (bounding) or shrinks (occluder) by "
                   "more than this percentage of the input's");
@@ -360,9 +368,7 @@ void register_simplify(CLI::App& app) {
     opt.seams = a->seams == "keep" ? SeamMode::keep : a->seams == "relax" ? SeamMode::relax : SeamMode::relax_materials;
     opt.max_error_rel = a->max_error_rel;
     opt.verify_budget = !a->no_verify;
-    opt.conservative = a->conservative == "bounding"   ? Conservative::bounding
-                       : a->conservative == "occluder" ? Conservative::occluder
-                                                       : Conservative::none;
+    opt.conservative = conservative_mode(a->conservative);
     opt.max_volume_growth = a->max_volume_growth_pct >= 0.0 ? a->max_volume_growth_pct / 100.0 : -1.0;
     opt.symmetry_plane = *symmetry::parse_plane_mode(a->symmetry_plane);
     if (a->engine == "edge_collapse") opt.engine = Engine::edge_collapse;

@@ -2,12 +2,20 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <string>
+
+#include "lodforge/simplify/simplify.hpp"
 
 namespace lodforge::cli {
 
 const char* version();
 int exit_code();
 void set_exit_code(int code);  // keeps the most severe code seen
+
+// `--conservative none|bounding|occluder` into `name` (simplify and terrain spell it the same), and the mode
+// it names.
+CLI::Option* add_conservative_option(CLI::App* cmd, std::string& name, const std::string& help);
+Conservative conservative_mode(const std::string& name);
 
 void register_info(CLI::App& app);
 void register_convert(CLI::App& app);

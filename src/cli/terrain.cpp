@@ -104,10 +104,8 @@ void register_terrain(CLI::App& app) {
   cmd->add_option("--ratios", a->ratios, "each level's share of a patch's triangles, finest first")
       ->default_val(a->ratios);
   cmd->add_option("--max-error", a->max_error, "also stop each level at this distance, in model units");
-  cmd->add_option("--conservative", a->conservative,
-                  "occluder (below the map: occlusion culling) | bounding (above it) | none")
-      ->default_val(a->conservative)
-      ->check(CLI::IsMember({"none", "bounding", "occluder"}));
+  add_conservative_option(cmd, a->conservative,
+                          "occluder (below the map: occlusion culling) | bounding (above it) | none");
   cmd->add_option("--spacing", a->spacing, "distance between samples: X or X,Z (default 1, or the sidecar's)");
   cmd->add_option("--height-scale", a->height_scale, "model units per sample step (default 1, or the sidecar's)");
   cmd->add_option("--height-offset", a->height_offset, "height of sample 0 (default 0, or the sidecar's)");
@@ -129,9 +127,7 @@ void register_terrain(CLI::App& app) {
     o.patch_cells = a->patch_cells;
     o.threads = a->threads;
     o.skirts = !a->no_skirts;
-    o.conservative = a->conservative == "bounding"   ? Conservative::bounding
-                     : a->conservative == "occluder" ? Conservative::occluder
-                                                     : Conservative::none;
+    o.conservative = conservative_mode(a->conservative);
     std::vector<double> ratios;
     if (!parse_list(a->ratios, ratios)) {
       std::fprintf(stderr, "error: --ratios: expected numbers separated by commas, got '%s'\n", a->ratios.c_str());
