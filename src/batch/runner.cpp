@@ -373,11 +373,15 @@ struct Job {
   std::vector<std::vector<MeshLod>> conservative_built;  // [mesh][entry]: the class's collision/occluder LODs
   std::vector<std::vector<Mesh>> conservative;           // [entry][mesh], post-processed for output
   // A terrain class's height map: the patches' chains until the lods stage takes them (the asset's meshes are
-  // the patches' full-resolution surfaces), and per level (0 = the source) the triangles without the skirts,
-  // which the ratio targets count.
+  // the patches' full-resolution surfaces), and per level (0 = the source) and asset mesh the triangles without
+  // the skirts, which the ratio targets count (empty for a mesh asset).
   std::optional<terrain::Result> terrain;
-  std::vector<std::size_t> terrain_surface;
-  std::vector<std::vector<std::size_t>> terrain_patch_surface;  // [level][mesh]: the same per patch
+  std::vector<std::vector<std::size_t>> terrain_surface;  // [level][mesh]
+  std::size_t terrain_surface_total(std::size_t level) const {
+    std::size_t n = 0;
+    for (const std::size_t t : terrain_surface[level]) n += t;
+    return n;
+  }
 
   // The report's pictures (PNG bytes, the source first, then each level). Only the picture branch touches
   // them, and only until both branches after post-process have arrived at gather.
@@ -714,22 +718,21 @@ class Pipeline {
     job.asset = io::Asset{};
     job.asset.source = job.file;
     job.asset.format = io::Format::glb;
-    job.terrain_surface.assign(o.levels.size() + 1, 0);
-    job.terrain_patch_surface.assign(o.levels.size() + 1, {});
+    job.terrain_surface.assign(o.levels.size() + 1, {});
     for (const terrain::Patch& p : job.terrain->patches) {
       if (p.lods[0].face_count() == 0) continue;  // all hole: nothing to show
       job.asset.meshes.push_back(p.lods[0]);
-      for (std::size_t k = 0; k < p.surface_triangles.size(); ++k) {
-        job.terrain_surface[k] += p.surface_triangles[k];
-        job.terrain_patch_surface[k].push_back(p.surface_triangles[k]);
-      }
+      for (std::size_t k = 0; k < p.surface_triangles.size(); ++k)
+        job.terrain_surface[k].push_back(p.surface_triangles[k]);
     }
+    Json surface = Json::array();
+    for (std::size_t k = 0; k < job.terrain_surface.size(); ++k) surface.push_back(job.terrain_surface_total(k));
     job.record["terrain"] = {{"width", map.width},
                              {"height", map.height},
                              {"patches", {job.terrain->patches_x, job.terrain->patches_z}},
                              {"patch_cells", spec.patch_cells},
                              {"rebuilt_patches", job.terrain->rebuilt},
-                             {"surface_triangles", job.terrain_surface},
+                             {"surface_triangles", std::move(surface)},
                              {"warnings", map.warnings}};
   }
 
@@ -900,8 +903,8 @@ class Pipeline {
       const std::size_t previous = k == 0 ? job.triangles : lods.back()["triangles"].get<std::size_t>();
 
       // A terrain's ratio targets count the surface, not the skirts (which grow with the level's wall vertices).
-      const std::size_t target_source = job.terrain_surface.empty() ? job.triangles : job.terrain_surface[0];
-      const std::size_t target_triangles = job.terrain_surface.empty() ? triangles : job.terrain_surface[k + 1];
+      const std::size_t target_source = job.terrain_surface.empty() ? job.triangles : job.terrain_surface_total(0);
+      const std::size_t target_triangles = job.terrain_surface.empty() ? triangles : job.terrain_surface_total(k + 1);
 
       placed.meshes = job.levels[k];
       const Mesh lod = io::world_surface(placed);
@@ -1110,15 +1113,14 @@ class Pipeline {
       io::Asset placed = with_meshes(job.asset, job.sources);
       const Mesh source = io::world_surface(placed);
       // A terrain is seen from above, each patch coloured by its share of a full patch's triangles.
-      const bool terrain = !job.terrain_patch_surface.empty();
+      const bool terrain = !job.terrain_surface.empty();
       const io::PictureFrame frame = io::frame_mesh(source, *io::find_picture_view(terrain ? "top" : "iso"));
       auto colours = [&](std::size_t level, const std::vector<Mesh>& meshes) {
         std::vector<std::array<std::uint8_t, 3>> out;
         if (!terrain) return out;
-        const double cells = static_cast<double>(job.cls->terrain->patch_cells);
         for (std::size_t m = 0; m < meshes.size(); ++m) {
-          const double share = static_cast<double>(job.terrain_patch_surface[level][m]) / (2.0 * cells * cells);
-          out.insert(out.end(), meshes[m].triangle_count(), terrain::share_colour(share));
+          out.insert(out.end(), meshes[m].triangle_count(),
+                     terrain::patch_colour(job.terrain_surface[level][m], job.cls->terrain->patch_cells));
         }
         return out;
       };

@@ -450,7 +450,9 @@ std::vector<std::string> Options::validate() const {
   return problems;
 }
 
-std::array<std::uint8_t, 3> share_colour(double share) {
+std::array<std::uint8_t, 3> patch_colour(std::size_t surface_triangles, std::size_t patch_cells) {
+  const double share = static_cast<double>(surface_triangles) /
+                       (2.0 * static_cast<double>(patch_cells) * static_cast<double>(patch_cells));
   // Blue, cyan, green, yellow, red at shares 1/1024, 1/181, 1/32, 1/5.7, 1 (log2 steps of 2.5).
   static constexpr std::array<std::array<double, 3>, 5> kStops{
       {{40, 70, 200}, {40, 180, 210}, {70, 190, 80}, {235, 210, 60}, {220, 60, 40}}};
@@ -597,13 +599,12 @@ Mesh level_surface(const Result& result, std::size_t level, std::size_t patch_ce
   out.materials.push_back({});
   out.name = "terrain_level_" + std::to_string(level);
   if (face_colours) face_colours->clear();
-  const double full = 2.0 * static_cast<double>(patch_cells) * static_cast<double>(patch_cells);
   for (const Patch& p : result.patches) {
     if (level >= p.lods.size()) continue;
     const Mesh& m = p.lods[level];
     const std::uint32_t base = static_cast<std::uint32_t>(out.vertex_count());
     for (const Vec3f& q : m.positions) out.add_vertex_with_wedge(q);
-    const std::array<std::uint8_t, 3> colour = share_colour(static_cast<double>(p.surface_triangles[level]) / full);
+    const std::array<std::uint8_t, 3> colour = patch_colour(p.surface_triangles[level], patch_cells);
     for (std::size_t f = 0; f < p.surface_triangles[level]; ++f) {
       const std::uint32_t b = m.face_offsets[f];
       out.add_face({base + m.wedge_vertex[m.corner_wedge[b]], base + m.wedge_vertex[m.corner_wedge[b + 1]],

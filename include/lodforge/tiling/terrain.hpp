@@ -87,8 +87,9 @@ std::optional<Result> decode_result(std::string_view bytes);
 Mesh level_surface(const Result& result, std::size_t level, std::size_t patch_cells,
                    std::vector<std::array<std::uint8_t, 3>>* face_colours = nullptr);
 
-// The colour level_surface gives a patch with `share` of a full patch's triangles.
-std::array<std::uint8_t, 3> share_colour(double share);
+// The colour level_surface gives a patch with `surface_triangles` (skirts left out): its share of a full
+// patch's triangles (patch_cells² cells, two each) on that log scale.
+std::array<std::uint8_t, 3> patch_colour(std::size_t surface_triangles, std::size_t patch_cells);
 
 // The full-resolution surface of the whole map (no skirts), positions as the patches have them: for measuring.
 Mesh full_surface(const io::HeightMap& map);
