@@ -483,12 +483,14 @@ void register_simplify(CLI::App& app) {
           const char* how = !r.budget.within    ? ""
                             : r.budget.certified ? ""
                                                  : " (bound not refined to the budget: met by measurement)";
-          std::printf("  budget %.4f%%: %s; LOD to input: bound %s, measured %s%s; input to LOD: measured "
-                      "%s (sampled); %zu collapse(s) backed off, %zu prefix(es) measured, %.1f ms\n",
+          // The input → LOD bound gives up at 1.1 budgets (the sampling tolerance): "over" there means that.
+          std::printf("  budget %.4f%%: %s; LOD to input: bound %s, measured %s%s; input to LOD: bound %s, "
+                      "measured %s; %zu collapse(s) backed off, %zu prefix(es) measured, %zu guarded rerun(s), "
+                      "%.1f ms\n",
                       percent(r.budget.budget_abs), r.budget.within ? "met" : "MISSED",
                       figure(r.budget.bound_abs).c_str(), figure(r.budget.sampled_abs).c_str(), how,
-                      figure(r.budget.reverse_abs).c_str(), r.budget.collapses_undone, r.budget.prefixes_measured,
-                      r.budget.ms);
+                      figure(r.budget.reverse_bound_abs).c_str(), figure(r.budget.reverse_abs).c_str(),
+                      r.budget.collapses_undone, r.budget.prefixes_measured, r.budget.guard_reruns, r.budget.ms);
         }
         if (r.repeated_faces_removed > 0) {
           std::printf("  note: dropped %zu face(s) repeating an earlier face (same corners, winding and material)\n",

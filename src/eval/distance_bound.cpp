@@ -47,6 +47,7 @@ struct Node {
   Vec3d p[3];
   Hit h[3];
   double cap = std::numeric_limits<double>::infinity();  // a bound known for the triangle it is part of
+  std::uint32_t source = 0;  // that triangle, in the mesh's triangle order
 };
 
 // A node's bound and the largest distance measured on it (its corners and, where needed, its centroid).
@@ -283,16 +284,18 @@ SurfaceIndex::SurfaceIndex(const Mesh& mesh) {
   bvh = TriangleBvh(positions, indices);
 }
 
-DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const DistanceBoundOptions& options) {
+namespace {
+
+DistanceBound bound_triangles(std::span<const Vec3d> positions, std::span<const std::uint32_t> idx,
+                              const SurfaceIndex& target, const DistanceBoundOptions& options) {
   DistanceBound out;
-  const std::vector<std::uint32_t> idx = triangle_vertex_indices(mesh);
   std::vector<std::uint32_t> triangles;  // first index of each triangle with finite corners
   std::vector<std::uint32_t> corners;    // vertices used by those, ascending
   {
-    std::vector<char> used(mesh.vertex_count(), 0);
+    std::vector<char> used(positions.size(), 0);
     for (std::uint32_t t = 0; t + 2 < idx.size(); t += 3) {
       bool finite = true;
-      for (std::uint32_t k = 0; k < 3; ++k) finite = finite && finite3(to_double(mesh.positions[idx[t + k]]));
+      for (std::uint32_t k = 0; k < 3; ++k) finite = finite && finite3(positions[idx[t + k]]);
       if (!finite) continue;
       if (options.on_target != nullptr && t / 3 < options.on_target->size() && (*options.on_target)[t / 3]) continue;
       triangles.push_back(t);
@@ -315,11 +318,11 @@ DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const
   tbb::task_arena arena(options.threads == 0 ? tbb::task_arena::automatic : static_cast<int>(options.threads));
 
   // The corners once each.
-  std::vector<Hit> vertex_hit(mesh.vertex_count());
+  std::vector<Hit> vertex_hit(positions.size());
   parallel_ranges(arena, corners.size(), 1024, [&](std::size_t b, std::size_t e) {
     std::uint32_t hint = kInvalidIndex;  // vertices come in mesh order: the last answer is often near the next
     for (std::size_t i = b; i < e; ++i) {
-      vertex_hit[corners[i]] = query(target.bvh, to_double(mesh.positions[corners[i]]), hint);
+      vertex_hit[corners[i]] = query(target.bvh, positions[corners[i]], hint);
       hint = vertex_hit[corners[i]].triangle;
     }
   });
@@ -330,10 +333,11 @@ DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const
   for (std::size_t i = 0; i < triangles.size(); ++i) {
     for (std::uint32_t k = 0; k < 3; ++k) {
       const std::uint32_t v = idx[triangles[i] + k];
-      active[i].p[k] = to_double(mesh.positions[v]);
+      active[i].p[k] = positions[v];
       active[i].h[k] = vertex_hit[v];
     }
     const std::size_t t = triangles[i] / 3;
+    active[i].source = static_cast<std::uint32_t>(t);
     if (options.known_upper != nullptr && t < options.known_upper->size() && (*options.known_upper)[t] >= 0) {
       active[i].cap = (*options.known_upper)[t];
     }
@@ -363,6 +367,11 @@ DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const
     const std::size_t n = active.size();
     out.rounds = round + 1;
     if (out.lower > options.give_up_above) {
+      for (std::size_t i = 0; i < fresh; ++i) {
+        if (bounds[i].lower > options.give_up_above) out.over.push_back(active[i].source);
+      }
+      std::sort(out.over.begin(), out.over.end());
+      out.over.erase(std::unique(out.over.begin(), out.over.end()), out.over.end());
       out.gave_up = true;
       out.upper = std::numeric_limits<double>::infinity();
       return out;
@@ -411,9 +420,10 @@ DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const
         }
         Node* c = &next[4 * s];
         m.cap = q.cap;
-        c[0] = {{q.p[0], m.p[0], m.p[2]}, {q.h[0], m.h[0], m.h[2]}, q.cap};
-        c[1] = {{m.p[0], q.p[1], m.p[1]}, {m.h[0], q.h[1], m.h[1]}, q.cap};
-        c[2] = {{m.p[2], m.p[1], q.p[2]}, {m.h[2], m.h[1], q.h[2]}, q.cap};
+        m.source = q.source;
+        c[0] = {{q.p[0], m.p[0], m.p[2]}, {q.h[0], m.h[0], m.h[2]}, q.cap, q.source};
+        c[1] = {{m.p[0], q.p[1], m.p[1]}, {m.h[0], q.h[1], m.h[1]}, q.cap, q.source};
+        c[2] = {{m.p[2], m.p[1], q.p[2]}, {m.h[2], m.h[1], q.h[2]}, q.cap, q.source};
         c[3] = m;
       }
     });
@@ -423,6 +433,19 @@ DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const
     out.queries += 3 * split.size();
     active.swap(next);
   }
+}
+
+}  // namespace
+
+DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const DistanceBoundOptions& options) {
+  std::vector<Vec3d> positions;
+  positions.reserve(mesh.vertex_count());
+  for (const Vec3f& p : mesh.positions) positions.push_back(to_double(p));
+  return bound_triangles(positions, triangle_vertex_indices(mesh), target, options);
+}
+
+DistanceBound distance_bound(const SurfaceIndex& surface, const SurfaceIndex& target, const DistanceBoundOptions& options) {
+  return bound_triangles(surface.positions, surface.indices, target, options);
 }
 
 }  // namespace lodforge

@@ -106,6 +106,7 @@ struct Case {
   double diagonal = 0;
   std::size_t source_tris = 0;
   std::size_t held_tris = 0, held_collapses = 0, log_size = 0;
+  std::size_t guard_reruns = 0, collapses_undone = 0;
   double bound = 0;         // reported, model units
   bool certified = false, within = false;
   StopReason stop = StopReason::target_reached;
@@ -237,6 +238,8 @@ void run_case(Case& c, const Mesh& src, const Settings& s) {
   c.bound = r.error_bound_abs;
   c.certified = r.budget.certified;
   c.within = r.budget.within;
+  c.guard_reruns = r.budget.guard_reruns;
+  c.collapses_undone = r.budget.collapses_undone;
   c.verify_ms = r.budget.ms;
   c.stop = r.stop_reason;
   const EvalResult e = evaluate(src, r.mesh, EvalOptions{.samples = s.eval_samples});
@@ -266,6 +269,8 @@ void print_case(const Case& c) {
   if (violates(c)) notes += "VIOLATION(bound<measured) ";
   if (c.hausdorff > kSamplingTolerance * c.budget * d) notes += "OVER-BUDGET ";
   if (!c.within) notes += "not-within ";
+  if (c.guard_reruns > 0) notes += "reruns " + std::to_string(c.guard_reruns) + " ";
+  if (c.collapses_undone > 0) notes += "backed-off " + std::to_string(c.collapses_undone) + " ";
   if (c.oracle_at_log_end) notes += "oracle=log-end ";
   if (c.replay_failed) notes += "REPLAY-FAILED ";
   if (c.oracle_run && !c.same_sequence) notes += "SEQUENCE-MISMATCH ";

@@ -56,6 +56,9 @@ struct DistanceBound {
   std::size_t queries = 0;  // closest-point queries made
   int rounds = 0;
   bool gave_up = false;  // stopped because `lower` exceeded give_up_above (then `upper` is +inf)
+  // When it gave up: the mesh's triangles (their index in triangle order, ascending) where the last round
+  // measured a point farther than give_up_above.
+  std::vector<std::uint32_t> over;
   // Every part of the mesh got its bound within the tolerance (or good_enough); false when max_rounds or
   // max_queries stopped the refinement first: `upper` is still a bound, only looser. Parts lying flat on the
   // target across several of its triangles converge slowly (a Lipschitz bound reaches zero only in the limit).
@@ -64,5 +67,8 @@ struct DistanceBound {
 
 // Triangles with a non-finite corner are skipped; a mesh without triangles gives {0, 0}.
 DistanceBound distance_bound(const Mesh& mesh, const SurfaceIndex& target, const DistanceBoundOptions& options = {});
+// The same for a surface already indexed (its own BVH is not used).
+DistanceBound distance_bound(const SurfaceIndex& surface, const SurfaceIndex& target,
+                             const DistanceBoundOptions& options = {});
 
 }  // namespace lodforge

@@ -264,12 +264,16 @@ struct BudgetCheck {
   // Output → reference: bound_abs is an upper bound (no point of the output is farther), refined until it
   // decides the budget; where flat parts of the output lie on the reference across several of its triangles
   // the refinement may stop first, and then the largest distance measured decides (certified false).
-  // Reference → output is sampled at the reference's vertices and triangle centroids (a point between samples
-  // may be farther by up to its distance to the nearest sample: the reference's own triangle size).
+  // Reference → output is bounded the same way (a long reference triangle over a concave crease of the output
+  // is near it at its corners and centroid, not between them), and decided the same way where its refinement
+  // cannot converge.
   bool certified = false;      // output → reference held by the bound, not by samples
   double bound_abs = 0;        // upper bound, output → reference
   double sampled_abs = 0;      // largest distance measured, output → reference
-  double reverse_abs = 0;      // sampled maximum, reference → output
+  double reverse_abs = 0;      // largest distance measured, reference → output
+  double reverse_bound_abs = 0;  // upper bound, reference → output
+  // Guarded runs repeated with extra reference samples where the reverse bound found a point over the budget.
+  std::size_t guard_reruns = 0;
   std::size_t collapses_undone = 0;  // collapses of the engine's run left out to meet the budget
   std::size_t prefixes_measured = 0;
   std::size_t prefixes_screened_incrementally = 0;  // of those: measured only where their collapses reached

@@ -159,5 +159,28 @@ TEST(DistanceBound, KnownBoundsCapTheResult) {
   EXPECT_DOUBLE_EQ(distance_bound(sphere, target, plenty).upper, exact.upper);
 }
 
+// Giving up names the triangles where a point over the threshold was found, and an indexed surface bounds
+// as its mesh does.
+TEST(DistanceBound, NamesTheTrianglesOverTheThresholdAndTakesAnIndexedSurface) {
+  Mesh two;  // triangle 0 lies in z = 0, triangle 1 rises to z = 1 at its far corner
+  for (const Vec3f& p : {Vec3f{{0, 0, 0}}, Vec3f{{1, 0, 0}}, Vec3f{{0, 1, 0}}, Vec3f{{5, 0, 0}}, Vec3f{{6, 0, 0}},
+                         Vec3f{{5, 1, 1}}}) {
+    two.add_vertex_with_wedge(p);
+  }
+  two.add_face({0, 1, 2});
+  two.add_face({3, 4, 5});
+  const SurfaceIndex target(two_triangle_square(10.0f));
+  const DistanceBound over = distance_bound(two, target, {.give_up_above = 0.5, .threads = 1});
+  EXPECT_TRUE(over.gave_up);
+  EXPECT_EQ(over.over, std::vector<std::uint32_t>{1});
+  const DistanceBound mesh = distance_bound(two, target, {.tolerance = 0.01, .threads = 1});
+  const DistanceBound indexed = distance_bound(SurfaceIndex(two), target, {.tolerance = 0.01, .threads = 1});
+  EXPECT_FALSE(mesh.gave_up);
+  EXPECT_TRUE(mesh.over.empty());
+  EXPECT_DOUBLE_EQ(mesh.upper, indexed.upper);
+  EXPECT_DOUBLE_EQ(mesh.lower, indexed.lower);
+  EXPECT_DOUBLE_EQ(mesh.lower, 1.0);
+}
+
 }  // namespace
 }  // namespace lodforge

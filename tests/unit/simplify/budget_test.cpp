@@ -285,5 +285,95 @@ TEST(ErrorBudget, GuardedFaceBoundsHoldEveryPointOfTheirTriangle) {
   }
 }
 
+// A big reference triangle and an output that covers it only around its corners and its centroid, in its
+// plane: every sample the screen takes (both ways) is at distance 0, and the reference's points between them
+// are far from the output. The reverse bound finds them.
+Mesh patch_around(const Vec3f& c, float r) {
+  Mesh m;
+  for (const Vec3f& p : {Vec3f{{c[0] - r, c[1] - r, 0}}, Vec3f{{c[0] + r, c[1] - r, 0}}, Vec3f{{c[0], c[1] + r, 0}}}) {
+    m.add_vertex_with_wedge(p);
+  }
+  m.add_face({0, 1, 2});
+  return m;
+}
+
+Mesh merged(const std::vector<Mesh>& parts) {
+  Mesh out;
+  for (const Mesh& part : parts) {
+    const std::uint32_t base = static_cast<std::uint32_t>(out.vertex_count());
+    for (const Vec3f& p : part.positions) out.add_vertex_with_wedge(p);
+    const std::vector<std::uint32_t> idx = triangle_vertex_indices(part);
+    for (std::size_t k = 0; k < idx.size(); k += 3) out.add_face({base + idx[k], base + idx[k + 1], base + idx[k + 2]});
+  }
+  return out;
+}
+
+TEST(ErrorBudget, AReferencePointBetweenItsSamplesIsMeasured) {
+  Mesh big;
+  for (const Vec3f& p : {Vec3f{{0, 0, 0}}, Vec3f{{30, 0, 0}}, Vec3f{{0, 30, 0}}}) big.add_vertex_with_wedge(p);
+  big.add_face({0, 1, 2});
+  const SurfaceIndex reference(big);
+  const double budget = 1.0;
+  // Patches around the corners and the centroid, clipped to the triangle's plane.
+  const Mesh gapped = merged({patch_around({{0.3f, 0.3f, 0}}, 0.3f), patch_around({{29.4f, 0.3f, 0}}, 0.3f),
+                              patch_around({{0.3f, 29.4f, 0}}, 0.3f), patch_around({{10, 10, 0}}, 0.3f)});
+  const BudgetCheck check = collapse::measure_budget(gapped, reference, budget, 1);
+  EXPECT_FALSE(check.within) << "the reference's points between the patches are up to ~7 from the output";
+  // The reference itself, as four triangles: within, and both bounds under the budget.
+  Mesh split;
+  for (const Vec3f& p : {Vec3f{{0, 0, 0}}, Vec3f{{30, 0, 0}}, Vec3f{{0, 30, 0}}, Vec3f{{15, 0, 0}},
+                         Vec3f{{15, 15, 0}}, Vec3f{{0, 15, 0}}}) {
+    split.add_vertex_with_wedge(p);
+  }
+  split.add_face({0, 3, 5});
+  split.add_face({3, 1, 4});
+  split.add_face({5, 4, 2});
+  split.add_face({3, 4, 5});
+  const BudgetCheck same = collapse::measure_budget(split, reference, budget, 1);
+  EXPECT_TRUE(same.within);
+  EXPECT_LE(same.bound_abs, budget);
+  EXPECT_LE(same.reverse_bound_abs, budget);
+}
+
+// A guarded run whose output the reverse bound rejects is run again, with a lattice on the reference triangles
+// it named among the guard's samples, before any back-off. A stand-in engine gives the gapped output while
+// its guard has only the reference's own samples, and the reference itself once it has more.
+struct RerunProbe {
+  static inline std::vector<std::size_t> sample_counts;
+  static inline Mesh gapped, whole;
+  static SimplifyResult engine(const Mesh& input, const SimplifyOptions&, const CollapsePolicies&,
+                               std::vector<collapse::CollapseRecord>* log, const collapse::GuardReference* guard) {
+    sample_counts.push_back(guard->samples.size());
+    if (log != nullptr) log->clear();
+    SimplifyResult r;
+    r.triangles_before = input.triangle_count();
+    r.mesh = sample_counts.size() == 1 ? gapped : whole;
+    r.triangles_after = r.mesh.triangle_count();
+    r.stop_reason = StopReason::error_budget;
+    return r;
+  }
+};
+
+TEST(ErrorBudget, AGuardedRunIsRepeatedWithSamplesWhereTheReverseBoundFails) {
+  Mesh big;
+  for (const Vec3f& p : {Vec3f{{0, 0, 0}}, Vec3f{{30, 0, 0}}, Vec3f{{0, 30, 0}}}) big.add_vertex_with_wedge(p);
+  big.add_face({0, 1, 2});
+  RerunProbe::gapped = merged({patch_around({{0.3f, 0.3f, 0}}, 0.3f), patch_around({{29.4f, 0.3f, 0}}, 0.3f),
+                               patch_around({{0.3f, 29.4f, 0}}, 0.3f), patch_around({{10, 10, 0}}, 0.3f)});
+  RerunProbe::whole = big;
+  RerunProbe::sample_counts.clear();
+  const double diag = compute_bounds(big).diagonal();
+  const SimplifyOptions o{.target_ratio = 0.5, .max_error_rel = 1.0 / diag, .threads = 1};
+  const SimplifyResult r = collapse::run_within_budget(&RerunProbe::engine, big, o, {});
+  ASSERT_EQ(RerunProbe::sample_counts.size(), 2u);
+  // The reference's 3 vertices and 1 centroid, then a lattice on its one triangle (about 4 points per budget).
+  EXPECT_EQ(RerunProbe::sample_counts[0], 4u);
+  EXPECT_GT(RerunProbe::sample_counts[1], 4u + 1000u);
+  EXPECT_EQ(r.budget.guard_reruns, 1u);
+  EXPECT_TRUE(r.budget.within);
+  EXPECT_EQ(r.budget.collapses_undone, 0u);
+  EXPECT_EQ(r.budget.prefixes_measured, 2u);
+}
+
 }  // namespace
 }  // namespace lodforge
