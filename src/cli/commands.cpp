@@ -24,6 +24,7 @@
 #include "lodforge/quad/quad_stats.hpp"
 #include "lodforge/simplify/simplify.hpp"
 #include "lodforge/symmetry/symmetry.hpp"
+#include "lodforge/tiling/stream.hpp"
 #include "lodforge/tiling/tiling.hpp"
 
 namespace lodforge::cli {
@@ -270,6 +271,61 @@ void register_convert(CLI::App& app) {
   });
 }
 
+// `lodforge simplify --memory-limit` on a binary PLY or OBJ too large to load whole under the limit: streamed
+// out of core (tiling/stream.hpp). False where the file loads whole (the caller goes on as usual). Tiles are
+// written beside the output, in a folder removed afterwards.
+bool simplify_out_of_core(const std::string& in, const std::string& out, const SimplifyOptions& opt,
+                          std::size_t memory_limit, const std::string& limit_text, bool evaluate) {
+  const unsigned workers = opt.threads ? opt.threads : static_cast<unsigned>(tbb::this_task_arena::max_concurrency());
+  const tiling::StreamPlan plan = tiling::plan_stream(in, opt, memory_limit, workers);
+  if (!plan.stream) return false;
+  const bool tileable = opt.engine == Engine::edge_collapse || opt.engine == Engine::multiple_choice;
+  const bool verified = opt.verify_budget && (opt.max_error_rel >= 0.0 || opt.max_error_abs >= 0.0);
+  if (!plan.fits || !tileable || verified) {
+    std::fprintf(stderr,
+                 "error: %s: %llu triangles do not fit in --memory-limit %s loaded whole (about %zu MB), and %s\n",
+                 in.c_str(), static_cast<unsigned long long>(plan.counts.triangles), limit_text.c_str(),
+                 plan.whole_bytes >> 20,
+                 !tileable  ? "this engine cannot tile, so cannot stream either"
+                 : verified ? "a verified error budget cannot stream (--no-verify can)"
+                            : "streamed out of core it needs more too (the program, the vertex positions and "
+                              "tiles of at least 1000 triangles)");
+    set_exit_code(2);
+    return true;
+  }
+  std::printf("%s: about %zu MB loaded whole, over --memory-limit %s: streamed out of core in tiles of %zu "
+              "triangles (about %zu MB)\n",
+              in.c_str(), plan.whole_bytes >> 20, limit_text.c_str(), plan.tile_triangles, plan.stream_bytes >> 20);
+  const std::filesystem::path scratch = std::filesystem::path(out).concat(".lodforge-tiles");
+  struct RemoveScratch {
+    const std::filesystem::path& path;
+    ~RemoveScratch() {
+      std::error_code ec;
+      std::filesystem::remove_all(path, ec);
+    }
+  } remove_scratch{scratch};
+  tiling::StreamedRun run = tiling::simplify_streamed(in, opt, plan.tile_triangles, scratch, memory_limit);
+  for (const std::string& w : run.warnings) std::printf("warning: %s\n", w.c_str());
+  const SimplifyResult& r = run.result;
+  const double diagonal = compute_bounds(r.mesh).diagonal();
+  std::printf("mesh 0: %zu -> %zu triangles (%zu vertices read, %zu tiles on disk), QEM error %.4f%% of diagonal (a "
+              "ranking, not a bound), stopped: %s, %.1f ms\n",
+              r.triangles_before, r.triangles_after, run.input_vertices, run.tiles,
+              diagonal > 0.0 ? 100.0 * r.qem_error_rel : 0.0, stop_reason_name(r.stop_reason),
+              r.timings.setup_ms + r.timings.initial_costs_ms + r.timings.collapse_ms + r.timings.output_ms);
+  std::printf("  tiled: %zu pass(es), %zu tile run(s)\n", r.tiling_passes, r.tile_runs);
+  if (evaluate) std::printf("  not measured: --eval needs the whole input in memory\n");
+  io::Asset asset;
+  asset.source = in;
+  asset.format = io::format_from_path(in);
+  asset.binary = true;
+  asset.obj_mtllibs = run.mtllibs;
+  asset.meshes.push_back(std::move(run.result.mesh));
+  io::save_asset(asset, out);
+  std::printf("wrote %s\n", out.c_str());
+  return true;
+}
+
 void register_simplify(CLI::App& app) {
   struct Args {
     std::string in, out, engine = "edge_collapse", border = "preserve";
@@ -358,8 +414,9 @@ void register_simplify(CLI::App& app) {
       ->default_val(a->opt.tile_triangles);
   cmd->add_option("--memory-limit", a->memory_limit,
                   "SIZE (512M, 4G; at least 16M): estimate each mesh's peak memory from its triangle count and tile "
-                  "it, with tiles small enough, where one engine run would not fit; refuse a mesh that does not "
-                  "fit even tiled (docs/tiling.md)");
+                  "it, with tiles small enough, where one engine run would not fit; stream a binary PLY or OBJ "
+                  "that does not fit loaded whole into tiles on disk (positions and faces only); refuse what does "
+                  "not fit even so (docs/tiling.md)");
   cmd->add_flag("--eval", a->evaluate, "measure the result against the input (Hausdorff, mean, RMS)");
   cmd->callback([a] {
     SimplifyOptions opt = a->opt;
@@ -406,6 +463,10 @@ void register_simplify(CLI::App& app) {
     }
     if (!output_writable(a->out)) return;
     try {
+      if (memory_limit > 0 && io::streamable(a->in) && simplify_out_of_core(a->in, a->out, opt, memory_limit,
+                                                                             a->memory_limit, a->evaluate)) {
+        return;
+      }
       io::Asset asset = io::load_asset(a->in);
       // Every mesh is planned before any is simplified: a mesh that cannot fit fails the run before the work.
       std::vector<tiling::MemoryPlan> plans(asset.meshes.size());
@@ -417,8 +478,7 @@ void register_simplify(CLI::App& app) {
           if (plans[i].fits) continue;
           const bool tileable = opt.engine == Engine::edge_collapse || opt.engine == Engine::multiple_choice;
           std::fprintf(stderr,
-                       "error: %s: mesh %zu (%zu triangles) does not fit in --memory-limit %s: %s (out-of-core "
-                       "streaming is not done)\n",
+                       "error: %s: mesh %zu (%zu triangles) does not fit in --memory-limit %s: %s\n",
                        a->in.c_str(), i, asset.meshes[i].triangle_count(), a->memory_limit.c_str(),
                        !tileable ? "one engine run needs more and this engine cannot tile"
                        : opt.verify_budget && (opt.max_error_rel >= 0.0 || opt.max_error_abs >= 0.0)

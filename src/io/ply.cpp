@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "lodforge/io/formats.hpp"
+#include "stream_internal.hpp"
 #include "text_parse.hpp"
 
 namespace lodforge::io {
@@ -146,39 +147,42 @@ Header parse_header(const std::filesystem::path& path, std::string_view bytes) {
   return h;
 }
 
+// One binary value at p (size_of(t) bytes), in the file's byte order.
+double decode_real(const char* p, Type t, bool big) {
+  switch (t) {
+    case Type::i8: return static_cast<std::int8_t>(*p);
+    case Type::u8: return static_cast<std::uint8_t>(*p);
+    case Type::i16: return parse::load<std::int16_t>(p, big);
+    case Type::u16: return parse::load<std::uint16_t>(p, big);
+    case Type::i32: return parse::load<std::int32_t>(p, big);
+    case Type::u32: return parse::load<std::uint32_t>(p, big);
+    case Type::f32: return parse::load<float>(p, big);
+    case Type::f64: return parse::load<double>(p, big);
+  }
+  return 0;
+}
+// Integral types only.
+std::int64_t decode_integer(const char* p, Type t, bool big) {
+  switch (t) {
+    case Type::i8: return static_cast<std::int8_t>(*p);
+    case Type::u8: return static_cast<std::uint8_t>(*p);
+    case Type::i16: return parse::load<std::int16_t>(p, big);
+    case Type::u16: return parse::load<std::uint16_t>(p, big);
+    case Type::i32: return parse::load<std::int32_t>(p, big);
+    case Type::u32: return parse::load<std::uint32_t>(p, big);
+    default: return 0;
+  }
+}
+
 // Reads values from the binary body with a bounds check on every read (a truncated file is an error, not UB).
 class BinarySource {
  public:
   BinarySource(const ErrorContext& ctx, std::string_view data, bool big_endian)
       : ctx_(ctx), p_(data.data()), end_(data.data() + data.size()), big_(big_endian) {}
 
-  double real(Type t) {
-    const char* p = take(size_of(t));
-    switch (t) {
-      case Type::i8: return static_cast<std::int8_t>(*p);
-      case Type::u8: return static_cast<std::uint8_t>(*p);
-      case Type::i16: return parse::load<std::int16_t>(p, big_);
-      case Type::u16: return parse::load<std::uint16_t>(p, big_);
-      case Type::i32: return parse::load<std::int32_t>(p, big_);
-      case Type::u32: return parse::load<std::uint32_t>(p, big_);
-      case Type::f32: return parse::load<float>(p, big_);
-      case Type::f64: return parse::load<double>(p, big_);
-    }
-    return 0;
-  }
+  double real(Type t) { return decode_real(take(size_of(t)), t, big_); }
   // Integral types only (checked in the header).
-  std::int64_t integer(Type t) {
-    const char* p = take(size_of(t));
-    switch (t) {
-      case Type::i8: return static_cast<std::int8_t>(*p);
-      case Type::u8: return static_cast<std::uint8_t>(*p);
-      case Type::i16: return parse::load<std::int16_t>(p, big_);
-      case Type::u16: return parse::load<std::uint16_t>(p, big_);
-      case Type::i32: return parse::load<std::int32_t>(p, big_);
-      case Type::u32: return parse::load<std::uint32_t>(p, big_);
-      default: return 0;
-    }
-  }
+  std::int64_t integer(Type t) { return decode_integer(take(size_of(t)), t, big_); }
   std::int64_t list_count(const Property& p) { return integer(p.count_type); }
   void skip(Type t, std::uint64_t n) {
     if (n > remaining() / size_of(t)) truncated();
@@ -211,6 +215,59 @@ class BinarySource {
   const char* end_;
   bool big_;
 };
+
+// BinarySource's reads over a file read front to back (out of core), with the same checks.
+class StreamSource {
+ public:
+  StreamSource(const ErrorContext& ctx, FileReader& reader, bool big_endian) : ctx_(ctx), reader_(reader), big_(big_endian) {}
+  double real(Type t) { return decode_real(take(size_of(t)), t, big_); }
+  std::int64_t integer(Type t) { return decode_integer(take(size_of(t)), t, big_); }
+  std::int64_t list_count(const Property& p) { return integer(p.count_type); }
+  void skip(Type t, std::uint64_t n) {
+    if (n > remaining() / size_of(t)) truncated();
+    for (std::uint64_t left = n * size_of(t); left > 0;) {
+      const std::size_t step = static_cast<std::size_t>(std::min<std::uint64_t>(left, 1u << 20));
+      take(step);
+      left -= step;
+    }
+  }
+  std::uint64_t remaining() const { return reader_.remaining(); }
+  static std::uint64_t min_item_bytes(Type t) { return size_of(t); }
+  void at(const std::string* element, std::uint64_t index) {
+    element_ = element;
+    index_ = index;
+  }
+
+ private:
+  const char* take(std::size_t n) {
+    const char* p = reader_.take(n);
+    if (p == nullptr) truncated();
+    return p;
+  }
+  [[noreturn]] void truncated() const {
+    ctx_.fail("binary data ends inside " + *element_ + " " + std::to_string(index_) + " (truncated file)");
+  }
+
+  const ErrorContext& ctx_;
+  FileReader& reader_;
+  const std::string* element_ = nullptr;
+  std::uint64_t index_ = 0;
+  bool big_;
+};
+
+// The header of a PLY file read by `reader`, which is left at the first byte of the body.
+Header read_streamed_header(const std::filesystem::path& path, FileReader& reader) {
+  constexpr std::size_t kMaxHeaderBytes = std::size_t{1} << 24;
+  std::string text;
+  std::string_view line;
+  while (reader.next_line(line)) {
+    text.append(line);
+    text.push_back('\n');
+    if (parse::trim(line) == "end_header") break;
+    if (text.size() > kMaxHeaderBytes) break;  // parse_header reports the missing end_header
+  }
+  return parse_header(path, text);
+}
 
 // Reads whitespace-separated values of the ASCII body.
 class AsciiSource {
@@ -464,6 +521,105 @@ BodyResult read_body(Source& src, const Header& h, const ErrorContext& ctx, cons
 }
 
 }  // namespace
+
+StreamCounts ply_counts(const std::filesystem::path& path) {
+  FileReader reader(path);
+  const Header h = read_streamed_header(path, reader);
+  StreamCounts c;
+  c.readable = h.encoding != Encoding::ascii;
+  for (const Element& e : h.elements) {
+    if (e.name == "vertex") c.vertices = e.count;
+    if (e.name == "face") c.triangles = e.count;
+  }
+  return c;
+}
+
+void stream_ply(const std::filesystem::path& path, const StreamSinks& sinks) {
+  FileReader reader(path);
+  ErrorContext ctx{path};
+  if (reader.size() == 0) ctx.fail("file is empty");
+  const Header h = read_streamed_header(path, reader);
+  if (h.encoding == Encoding::ascii) ctx.fail("an ASCII PLY file cannot be read out of core (binary only)");
+  StreamSource src(ctx, reader, h.encoding == Encoding::binary_be);
+  std::uint64_t vertices = 0;
+  bool have_vertices = false, have_faces = false;
+  std::vector<std::uint32_t> face;
+  for (const Element& e : h.elements) {
+    if (e.name == "vertex" && !have_vertices) {
+      int axis[3] = {-1, -1, -1};
+      for (std::size_t k = 0; k < e.properties.size(); ++k) {
+        const Property& p = e.properties[k];
+        const Role role = role_named(p.name);
+        if (p.list && role != Role::skip) ctx.fail("vertex property '" + p.name + "' is declared as a list where a scalar is expected");
+        if (role == Role::x || role == Role::y || role == Role::z) {
+          axis[static_cast<int>(role) - static_cast<int>(Role::x)] = static_cast<int>(k);
+        } else if (role != Role::skip) {
+          ctx.fail("the file has vertex property '" + p.name + "', and reading it out of core keeps positions and "
+                   "faces only (raise --memory-limit so that it loads whole)");
+        }
+      }
+      if (axis[0] < 0 || axis[1] < 0 || axis[2] < 0) ctx.fail("the vertex element has no x, y and z properties");
+      parse::check_declared_count(ctx, "vertices", e.count, 1, src.remaining(), {});
+      for (std::uint64_t i = 0; i < e.count; ++i) {
+        src.at(&e.name, i);
+        Vec3f p{};
+        for (std::size_t k = 0; k < e.properties.size(); ++k) {
+          const Property& q = e.properties[k];
+          const int a = static_cast<int>(k) == axis[0] ? 0 : static_cast<int>(k) == axis[1] ? 1 : static_cast<int>(k) == axis[2] ? 2 : -1;
+          if (a < 0) {
+            skip_property(src, q);
+          } else {
+            p[a] = static_cast<float>(src.real(q.type));
+          }
+        }
+        parse::check_finite_position(ctx, p, i);
+        sinks.vertex(p);
+      }
+      vertices = e.count;
+      have_vertices = true;
+    } else if (e.name == "face" && !have_faces) {
+      if (!have_vertices) ctx.fail("the face element comes before the vertex element (out of core, vertices must come first)");
+      const Property* list = nullptr;
+      for (const Property& p : e.properties) {
+        if (is_face_list(p)) list = &p;
+      }
+      if (!list) ctx.fail("the face element has no vertex_indices list");
+      if (!is_integral(list->type)) ctx.fail("the face vertex_indices list has a non-integer item type");
+      for (std::uint64_t f = 0; f < e.count; ++f) {
+        src.at(&e.name, f);
+        for (const Property& p : e.properties) {
+          if (&p != list) {
+            skip_property(src, p);
+            continue;
+          }
+          const std::int64_t count = src.list_count(p);
+          if (count < 3) ctx.fail("face " + std::to_string(f) + " has " + std::to_string(count) + " vertices (at least 3 needed)");
+          if (static_cast<std::uint64_t>(count) > src.remaining() / size_of(p.type)) {
+            ctx.fail("face " + std::to_string(f) + " declares " + std::to_string(count) +
+                     " vertices, more than the remaining data holds");
+          }
+          face.clear();
+          for (std::int64_t c = 0; c < count; ++c) {
+            const std::int64_t index = src.integer(p.type);
+            if (index < 0 || static_cast<std::uint64_t>(index) >= vertices) {
+              ctx.fail("face " + std::to_string(f) + " uses vertex " + std::to_string(index) + " but the file has " +
+                       std::to_string(vertices) + " vertices");
+            }
+            face.push_back(static_cast<std::uint32_t>(index));
+          }
+          sinks.face(face);
+        }
+      }
+      have_faces = true;
+    } else {
+      for (std::uint64_t i = 0; i < e.count; ++i) {
+        src.at(&e.name, i);
+        for (const Property& p : e.properties) skip_property(src, p);
+      }
+    }
+  }
+  if (!have_vertices) ctx.fail("the file has no vertex element");
+}
 
 Asset read_ply(const std::filesystem::path& path, std::string_view bytes, const LoadOptions& options) {
   ErrorContext ctx{path};

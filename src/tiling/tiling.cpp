@@ -17,13 +17,18 @@
 #include <utility>
 
 #include "../simplify/engines.hpp"
+#include "tiles.hpp"
 
 namespace lodforge::tiling {
 
+using detail::global_target;
+using detail::may_tile;
+using detail::stitch;
+using detail::TileRun;
+using detail::track_locked;
+
 namespace {
 
-constexpr int kCellBits = 21;  // cell index bits per axis in a cell key
-constexpr std::int64_t kCellMax = (std::int64_t{1} << kCellBits) - 1;
 
 bool same_bits(const Vec3f& a, const Vec3f& b) {
   return std::memcmp(a.v.data(), b.v.data(), sizeof(float) * 3) == 0;
@@ -39,11 +44,6 @@ Vec3d centroid(const Mesh& m, std::size_t f) {
   Vec3d s{};
   for (int i = 0; i < 3; ++i) s = s + to_double(m.positions[m.corner_vertex(c + i)]);
   return s * (1.0 / 3.0);
-}
-
-// The global target of a run over `n` triangles (as every engine reads the options).
-std::size_t global_target(const SimplifyOptions& o, std::size_t n) {
-  return std::max<std::size_t>(1, collapse::stop_rule(o, n, 0.0).target_triangles);
 }
 
 // Whether two wedges (of the same stitched vertex, one from each of two tile outputs) carry the same
@@ -111,13 +111,6 @@ Mesh empty_like(const Mesh& src) {
   return m;
 }
 
-// One tile's run: its output, the output vertex of each tracked (locked) sub-mesh vertex with its source vertex.
-struct TileRun {
-  SimplifyResult result;
-  std::vector<std::uint32_t> tracked_source;  // source vertex (in the pass's mesh), ascending by output vertex
-  std::vector<std::uint32_t> tracked_output;  // output vertex of each
-};
-
 TileRun run_tile(const Mesh& mesh, const TileCut& c, std::size_t t, const std::vector<std::uint8_t>& user_locked,
                  std::size_t global_target_triangles, std::size_t pass_triangles, const SimplifyOptions& tile_options) {
   std::vector<std::uint32_t> vertices;
@@ -132,28 +125,50 @@ TileRun run_tile(const Mesh& mesh, const TileCut& c, std::size_t t, const std::v
   o.target_triangles = std::max<std::size_t>(1, (global_target_triangles * n + pass_triangles / 2) / pass_triangles);
   TileRun run;
   run.result = simplify(sub, o);
+  track_locked(run, sub, o.locked_vertices, vertices, t);
+  return run;
+}
+
+}  // namespace
+
+namespace detail {
+
+std::size_t global_target(const SimplifyOptions& o, std::size_t n) {
+  return std::max<std::size_t>(1, collapse::stop_rule(o, n, 0.0).target_triangles);
+}
+
+// applies() without the size: whether these options may tile a mesh at all.
+bool may_tile(const SimplifyOptions& options) {
+  if (options.tiling == TilingMode::off) return false;
+  if (options.engine != Engine::edge_collapse && options.engine != Engine::multiple_choice) return false;
+  // A volume budget is a fraction of the whole mesh's volume: a tile (an open piece) has none of its own.
+  if (options.conservative != Conservative::none && options.max_volume_growth >= 0.0) return false;
+  return !options.verifies_budget();
+}
+
+void track_locked(TileRun& run, const Mesh& sub, const std::vector<std::uint32_t>& locked,
+                  const std::vector<std::uint32_t>& source_of, std::size_t tile) {
   // Locked vertices never move and survivors keep their order: a merge walk over exact positions finds them.
   const Mesh& out = run.result.mesh;
   std::size_t p = 0;
-  for (std::uint32_t j = 0; j < out.vertex_count() && p < o.locked_vertices.size(); ++j) {
-    if (same_bits(out.positions[j], sub.positions[o.locked_vertices[p]])) {
-      run.tracked_source.push_back(vertices[o.locked_vertices[p]]);
+  for (std::uint32_t j = 0; j < out.vertex_count() && p < locked.size(); ++j) {
+    if (same_bits(out.positions[j], sub.positions[locked[p]])) {
+      run.tracked_source.push_back(source_of[locked[p]]);
       run.tracked_output.push_back(j);
       ++p;
     }
   }
-  if (p != o.locked_vertices.size()) {
-    throw std::logic_error("tiling: a locked border vertex of tile " + std::to_string(t) + " moved or vanished");
+  if (p != locked.size()) {
+    throw std::logic_error("tiling: a locked border vertex of tile " + std::to_string(tile) + " moved or vanished");
   }
-  return run;
 }
 
 // The tiles' outputs as one mesh, in tile order: tracked vertices (borders, user locks) weld to one vertex each,
 // and their wedges with the same attributes to one wedge. `locked` (per vertex of the pass's mesh) becomes the
 // user locks of the stitched mesh.
-Mesh stitch(const Mesh& source, const std::vector<TileRun>& runs, std::vector<std::uint8_t>& locked,
-            const SimplifyOptions& options) {
-  Mesh out = empty_like(source);
+Mesh stitch(const Mesh& like, std::size_t source_vertices, const std::vector<TileRun>& runs,
+            std::vector<std::uint8_t>& locked, const SimplifyOptions& options) {
+  Mesh out = empty_like(like);
   std::size_t nv = 0, nw = 0, nc = 0;
   for (const TileRun& r : runs) {
     nv += r.result.mesh.vertex_count();
@@ -167,7 +182,7 @@ Mesh stitch(const Mesh& source, const std::vector<TileRun>& runs, std::vector<st
   out.face_material.reserve(nc / 3);
   std::vector<std::uint8_t> next_locked;
   next_locked.reserve(nv);
-  std::vector<std::uint32_t> global_of_source(source.vertex_count(), kInvalidIndex);
+  std::vector<std::uint32_t> global_of_source(source_vertices, kInvalidIndex);
   // Wedges made so far on each welded vertex, for the weld of equal wedges.
   struct MadeWedge {
     std::uint32_t tile, local, global;  // the tile output it came from, its id there, its id in `out`
@@ -232,7 +247,7 @@ Mesh stitch(const Mesh& source, const std::vector<TileRun>& runs, std::vector<st
   return out;
 }
 
-}  // namespace
+}  // namespace detail
 
 double pass_shift(int pass) {
   static constexpr double kShifts[] = {0.0, 0.5, 0.25, 0.75};
@@ -240,15 +255,6 @@ double pass_shift(int pass) {
 }
 
 namespace {
-
-// applies() without the size: whether these options may tile a mesh at all.
-bool may_tile(const SimplifyOptions& options) {
-  if (options.tiling == TilingMode::off) return false;
-  if (options.engine != Engine::edge_collapse && options.engine != Engine::multiple_choice) return false;
-  // A volume budget is a fraction of the whole mesh's volume: a tile (an open piece) has none of its own.
-  if (options.conservative != Conservative::none && options.max_volume_growth >= 0.0) return false;
-  return !options.verifies_budget();
-}
 
 }  // namespace
 
@@ -281,7 +287,7 @@ TileCut cut(const Mesh& triangles, std::size_t tile_triangles, double shift) {
   const double diagonal = box.diagonal();
   if (!(cell > 0.0) || !std::isfinite(cell)) cell = diagonal * std::cbrt(per_tile);
   // Never so small that the cell index overflows its bits.
-  if (std::isfinite(diagonal)) cell = std::max(cell, diagonal / static_cast<double>(kCellMax / 2));
+  if (std::isfinite(diagonal)) cell = std::max(cell, diagonal / static_cast<double>(detail::kCellMax / 2));
   c.cell = cell;
   std::vector<std::uint64_t> key(n);
   const bool one_tile = !(cell > 0.0) || !std::isfinite(cell);
@@ -293,13 +299,7 @@ TileCut cut(const Mesh& triangles, std::size_t tile_triangles, double shift) {
         key[f] = 0;
         continue;
       }
-      std::uint64_t k = 0;
-      for (int a = 0; a < 3; ++a) {
-        const std::int64_t i =
-            std::clamp<std::int64_t>(static_cast<std::int64_t>(std::floor((p[a] - origin[a]) / cell)), 0, kCellMax);
-        k = (k << kCellBits) | static_cast<std::uint64_t>(i);
-      }
-      key[f] = k;
+      key[f] = detail::cell_key(p, origin, cell);
     }
   });
   std::vector<std::uint64_t> cells = key;
@@ -518,7 +518,7 @@ SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& opti
       stopped = stopped || r.result.stop_reason == StopReason::stopped;
       over_budget = over_budget || r.result.stop_reason == StopReason::error_budget;
     }
-    Mesh next = stitch(*mesh, runs, locked, options);
+    Mesh next = stitch(*mesh, mesh->vertex_count(), runs, locked, options);
     runs.clear();
     total.timings.setup_ms += cut_ms + collapse::elapsed_ms(t2);
     const bool progress = next.face_count() < n;

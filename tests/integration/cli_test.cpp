@@ -354,6 +354,44 @@ TEST(Cli, SimplifyTilesUnderAMemoryLimit) {
   EXPECT_FALSE(fs::exists(x));
 }
 
+// A binary PLY too large to load whole under the limit is streamed out of core: tiles on disk (removed
+// afterwards), a valid LOD at the target; an OBJ with normals is refused by name, and nothing is written.
+TEST(Cli, SimplifyStreamsAFileThatCannotLoadWhole) {
+  const fs::path dir = lodforge::testing::temp_dir("cli_simplify_stream");
+  lodforge::io::Asset asset;
+  asset.format = lodforge::io::Format::ply;
+  asset.binary = true;
+  asset.meshes.push_back(lodforge::testing::make_uv_sphere(400, 500));  // about 400,000 triangles
+  const std::size_t triangles = asset.meshes[0].face_count();
+  const std::string in = (dir / "sphere.ply").string(), out = (dir / "sphere_lod.ply").string();
+  lodforge::io::save_asset(asset, in);
+  const CliRun r = run_cli("simplify " + in + " " + out + " --ratio 0.01 --memory-limit 32M");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("over --memory-limit 32M: streamed out of core in tiles of"), std::string::npos) << r.output;
+  const lodforge::io::Asset lod = lodforge::io::load_asset(out);
+  ASSERT_EQ(lod.meshes.size(), 1u);
+  EXPECT_TRUE(lodforge::validate(lod.meshes[0]).ok());
+  EXPECT_LE(lod.meshes[0].face_count(), triangles / 100 + 1);
+  EXPECT_GT(lod.meshes[0].face_count(), triangles / 100 * 9 / 10);
+  EXPECT_FALSE(fs::exists(out + ".lodforge-tiles")) << "the tile folder is removed";
+  // With room, the same file loads whole.
+  const CliRun roomy = run_cli("simplify " + in + " " + out + " --ratio 0.01 --memory-limit 4G");
+  ASSERT_EQ(roomy.exit_code, 0) << roomy.output;
+  EXPECT_EQ(roomy.output.find("streamed"), std::string::npos) << roomy.output;
+  // Normals would be lost: refused, naming the file and what it has.
+  asset.format = lodforge::io::Format::obj;
+  lodforge::Mesh& m = asset.meshes[0];
+  m.normals.assign(m.wedge_count(), lodforge::Vec3f{{0, 0, 1}});
+  const std::string obj = (dir / "normals.obj").string(), x = (dir / "x.obj").string();
+  lodforge::io::save_asset(asset, obj);
+  const CliRun refused = run_cli("simplify " + obj + " " + x + " --ratio 0.01 --memory-limit 32M");
+  EXPECT_EQ(refused.exit_code, 2) << refused.output;
+  EXPECT_NE(refused.output.find("error: " + obj + ": line "), std::string::npos) << refused.output;
+  EXPECT_NE(refused.output.find("normals ('vn')"), std::string::npos) << refused.output;
+  EXPECT_FALSE(fs::exists(x));
+  EXPECT_FALSE(fs::exists(x + ".lodforge-tiles"));
+}
+
 }  // namespace
 
 namespace {

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <map>
 #include <numbers>
 #include <set>
@@ -15,6 +16,7 @@
 #include "lodforge/core/validate.hpp"
 #include "lodforge/io/asset.hpp"
 #include "lodforge/simplify/simplify.hpp"
+#include "lodforge/tiling/stream.hpp"
 #include "test_support.hpp"
 
 namespace lodforge::tiling {
@@ -468,6 +470,116 @@ TEST(TilingCorpus, FlightHelmetKeepsUvCharts) {
     ++checked;
   }
   EXPECT_GT(checked, 0u);
+}
+
+// ---- out of core ----
+
+// The torus written as a binary PLY and as an OBJ (the same float positions).
+std::filesystem::path saved_torus(const std::filesystem::path& dir, const std::string& file, int rings, int segments) {
+  io::Asset a;
+  a.format = io::format_from_path(file);
+  a.binary = true;
+  a.meshes.push_back(make_torus(rings, segments));
+  const std::filesystem::path path = dir / file;
+  io::save_asset(a, path);
+  return path;
+}
+
+TEST(TilingStream, ClosedMeshStaysCrackFreeTheSameOnAnyThreadCountAndFormat) {
+  const Mesh m = make_torus(160, 100);
+  const long euler_before = long(m.vertex_count()) - long(edge_faces(m).size()) + long(m.face_count());
+  const std::filesystem::path dir = testing::temp_dir("tiling_stream_torus");
+  const std::filesystem::path ply = saved_torus(dir, "torus.ply", 160, 100), obj = saved_torus(dir, "torus.obj", 160, 100);
+  const std::filesystem::path scratch = dir / "tiles";
+  SimplifyOptions o;
+  o.target_ratio = 0.1;
+  StreamedRun one, two;
+  {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
+    o.threads = 1;
+    one = simplify_streamed(ply, o, 3000, scratch);
+  }
+  {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
+    o.threads = 2;
+    two = simplify_streamed(ply, o, 3000, scratch);
+  }
+  o.threads = 0;
+  const StreamedRun from_obj = simplify_streamed(obj, o, 3000, scratch);
+  const SimplifyResult& r = one.result;
+  EXPECT_TRUE(r.mesh == two.result.mesh);
+  EXPECT_EQ(r.mesh.positions, from_obj.result.mesh.positions) << "the same surface read from an OBJ";
+  EXPECT_EQ(r.mesh.corner_wedge, from_obj.result.mesh.corner_wedge);
+  ASSERT_EQ(from_obj.result.mesh.materials.size(), 1u);
+  EXPECT_EQ(from_obj.result.mesh.materials[0].name, "default") << "the OBJ's one usemtl slot";
+  EXPECT_EQ(one.input_vertices, m.vertex_count());
+  EXPECT_GT(one.tiles, 4u);
+  EXPECT_EQ(r.triangles_before, m.face_count());
+  EXPECT_EQ(r.stop_reason, StopReason::target_reached);
+  EXPECT_LE(r.triangles_after, m.face_count() / 10);
+  EXPECT_GT(r.triangles_after, m.face_count() / 10 * 9 / 10);
+  const auto e = edge_faces(r.mesh);
+  std::size_t open = 0;
+  for (const auto& [edge, n] : e) open += n != 2;
+  EXPECT_EQ(open, 0u) << "watertight: no crack, no T-junction along the tiles' cuts";
+  EXPECT_EQ(long(r.mesh.vertex_count()) - long(e.size()) + long(r.mesh.face_count()), euler_before);
+  EXPECT_EQ(duplicate_positions(r.mesh), 0u);
+  EXPECT_TRUE(validate(r.mesh).ok());
+  EXPECT_TRUE(std::filesystem::is_empty(scratch)) << "tile files are removed once read";
+  // Close to what the in-memory tiled path makes from the same mesh (the same cut of the first pass, cells of
+  // half the size).
+  const SimplifyResult in_memory = simplify_maybe_tiled(m, tiled(0.1, 3000));
+  EXPECT_EQ(in_memory.triangles_after, r.triangles_after);
+}
+
+TEST(TilingStream, WeldsRepeatedPositionsAndDropsWhatCollapses) {
+  // The torus with every vertex written twice (faces use the copies in alternation): welded back as loading
+  // whole does, so the cuts still weld and the mesh stays closed.
+  const Mesh m = make_torus(60, 40);
+  std::string text;
+  for (int copy = 0; copy < 2; ++copy) {
+    for (const Vec3f& p : m.positions) text += "v " + std::to_string(p[0]) + " " + std::to_string(p[1]) + " " + std::to_string(p[2]) + "\n";
+  }
+  const std::uint32_t n = static_cast<std::uint32_t>(m.vertex_count());
+  for (std::size_t f = 0; f < m.face_count(); ++f) {
+    text += "f";
+    for (std::uint32_t k = 0; k < 3; ++k) text += " " + std::to_string(m.corner_vertex(3 * f + k) + 1 + (f % 2) * n);
+    text += "\n";
+  }
+  text += "f 1 1 2\n";  // degenerate: dropped, and said
+  const std::filesystem::path dir = testing::temp_dir("tiling_stream_twice");
+  const std::filesystem::path path = dir / "twice.obj";
+  std::ofstream(path) << text;
+  SimplifyOptions o;
+  o.target_ratio = 0.25;
+  const StreamedRun r = simplify_streamed(path, o, 500, dir / "tiles");
+  EXPECT_EQ(r.degenerate_dropped, 1u);
+  ASSERT_FALSE(r.warnings.empty());
+  EXPECT_NE(r.warnings.back().find("repeated corner"), std::string::npos);
+  std::size_t open = 0;
+  for (const auto& [edge, k] : edge_faces(r.result.mesh)) open += k != 2;
+  EXPECT_EQ(open, 0u);
+  EXPECT_EQ(duplicate_positions(r.result.mesh), 0u);
+}
+
+TEST(TilingStream, PlansToStreamOnlyWhatCannotLoadWhole) {
+  const std::filesystem::path dir = testing::temp_dir("tiling_stream_plan");
+  const std::filesystem::path ply = saved_torus(dir, "plan.ply", 500, 400);  // 400k triangles, 200k vertices
+  SimplifyOptions o;
+  o.target_ratio = 0.01;
+  const StreamPlan roomy = plan_stream(ply, o, std::size_t{1} << 30, 2);
+  EXPECT_FALSE(roomy.stream);
+  EXPECT_EQ(roomy.counts.vertices, 200000u);
+  EXPECT_EQ(roomy.counts.triangles, 400000u);
+  const StreamPlan tight = plan_stream(ply, o, std::size_t{32} << 20, 2);
+  EXPECT_TRUE(tight.stream);
+  EXPECT_TRUE(tight.fits);
+  EXPECT_GE(tight.tile_triangles, kMinStreamTile);
+  EXPECT_LE(tight.stream_bytes, (std::size_t{32} << 20) - (std::size_t{32} << 17));
+  EXPECT_FALSE(plan_stream(ply, o, std::size_t{16} << 20, 2).fits);
+  // An engine that cannot tile cannot stream.
+  o.engine = Engine::polychord;
+  EXPECT_THROW(simplify_streamed(ply, o, 3000, dir / "tiles"), std::invalid_argument);
 }
 
 }  // namespace

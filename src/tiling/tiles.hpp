@@ -1,0 +1,53 @@
+// Private to the tiling part: one tile's run and the stitch of tile outputs, shared by the in-memory tiled
+// path (tiling.cpp) and the out-of-core one (stream.cpp).
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "lodforge/core/mesh.hpp"
+#include "lodforge/simplify/simplify.hpp"
+
+namespace lodforge::tiling::detail {
+
+// Cell keys: a cell index per axis in kCellBits bits (clamped), axes packed x, y, z.
+inline constexpr int kCellBits = 21;
+inline constexpr std::int64_t kCellMax = (std::int64_t{1} << kCellBits) - 1;
+inline std::uint64_t cell_key(const Vec3d& p, const Vec3d& origin, double cell) {
+  std::uint64_t k = 0;
+  for (int a = 0; a < 3; ++a) {
+    const double x = std::floor((p[a] - origin[a]) / cell);
+    const std::int64_t i = std::isfinite(x) ? std::clamp<std::int64_t>(static_cast<std::int64_t>(std::clamp(x, -1.0, double(kCellMax))), 0, kCellMax) : 0;
+    k = (k << kCellBits) | static_cast<std::uint64_t>(i);
+  }
+  return k;
+}
+
+// The global target of a run over `n` triangles (as every engine reads the options).
+std::size_t global_target(const SimplifyOptions& o, std::size_t n);
+// applies() without the size: whether these options may tile a mesh at all.
+bool may_tile(const SimplifyOptions& options);
+
+// One tile's run: its output, the output vertex of each tracked (locked) sub-mesh vertex with its source vertex.
+struct TileRun {
+  SimplifyResult result;
+  std::vector<std::uint32_t> tracked_source;  // source vertex (in the pass's mesh), ascending by output vertex
+  std::vector<std::uint32_t> tracked_output;  // output vertex of each
+};
+
+// Fills run.tracked_*: `locked` (ascending sub-mesh vertices) found in run.result.mesh, `source_of` the
+// source vertex of each sub-mesh vertex. Throws std::logic_error if one moved or vanished.
+void track_locked(TileRun& run, const Mesh& sub, const std::vector<std::uint32_t>& locked,
+                  const std::vector<std::uint32_t>& source_of, std::size_t tile);
+
+// The tiles' outputs as one mesh, in tile order: tracked vertices (borders, user locks) weld to one vertex each,
+// and their wedges with the same attributes to one wedge. `like` gives the attribute layout and materials;
+// `source_vertices` is the vertex count of the mesh the tiles were cut from, and `locked` (one per such vertex)
+// becomes the user locks of the stitched mesh.
+Mesh stitch(const Mesh& like, std::size_t source_vertices, const std::vector<TileRun>& runs,
+            std::vector<std::uint8_t>& locked, const SimplifyOptions& options);
+
+}  // namespace lodforge::tiling::detail
