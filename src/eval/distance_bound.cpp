@@ -350,6 +350,7 @@ DistanceBound bound_triangles(std::span<const Vec3d> positions, std::span<const 
   // Nodes still open from earlier rounds (with their bounds), when the query allowance let only the worst split.
   std::vector<Node> waiting;
   std::vector<Bound> waiting_bounds;
+  std::vector<std::uint32_t> over;  // list_over: triangles found over give_up_above
   for (int round = 0;; ++round) {
     const std::size_t fresh = active.size();
     bounds.resize(fresh);
@@ -366,7 +367,7 @@ DistanceBound bound_triangles(std::span<const Vec3d> positions, std::span<const 
     waiting_bounds.clear();
     const std::size_t n = active.size();
     out.rounds = round + 1;
-    if (out.lower > options.give_up_above) {
+    if (out.lower > options.give_up_above && !options.list_over) {
       for (std::size_t i = 0; i < fresh; ++i) {
         if (bounds[i].lower > options.give_up_above) out.over.push_back(active[i].source);
       }
@@ -376,10 +377,16 @@ DistanceBound bound_triangles(std::span<const Vec3d> positions, std::span<const 
       out.upper = std::numeric_limits<double>::infinity();
       return out;
     }
-    const double enough = std::max((1.0 + options.tolerance) * out.lower, options.good_enough);
+    double enough = std::max((1.0 + options.tolerance) * out.lower, options.good_enough);
+    // Listing, the largest distance may be one set aside over the threshold: a part settles only below it.
+    if (options.list_over) enough = std::min(enough, options.give_up_above);
     split.clear();
     double open = 0.0;  // largest bound among the nodes still to refine
     for (std::size_t i = 0; i < n; ++i) {
+      if (options.list_over && bounds[i].lower > options.give_up_above) {
+        over.push_back(active[i].source);  // decided: not refined further
+        continue;
+      }
       if (bounds[i].upper <= enough) {
         settled = std::max(settled, bounds[i].upper);
       } else {
@@ -391,6 +398,13 @@ DistanceBound bound_triangles(std::span<const Vec3d> positions, std::span<const 
     if (split.empty() || round + 1 >= options.max_rounds || affordable == 0) {
       out.converged = split.empty();
       out.upper = std::max({settled, open, out.lower});
+      if (!over.empty()) {
+        std::sort(over.begin(), over.end());
+        over.erase(std::unique(over.begin(), over.end()), over.end());
+        out.over = std::move(over);
+        out.gave_up = true;
+        out.upper = std::numeric_limits<double>::infinity();
+      }
       return out;
     }
     if (split.size() > affordable) {

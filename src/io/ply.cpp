@@ -174,11 +174,47 @@ std::int64_t decode_integer(const char* p, Type t, bool big) {
   }
 }
 
+// Where BinarySource's bytes come from: the body held in memory, or a file read front to back (out of core).
+// take(n) gives the next n bytes or nullptr where the data ends first; skip(n) is checked by the caller.
+class MemoryBytes {
+ public:
+  explicit MemoryBytes(std::string_view data) : p_(data.data()), end_(data.data() + data.size()) {}
+  const char* take(std::size_t n) {
+    if (static_cast<std::size_t>(end_ - p_) < n) return nullptr;
+    const char* p = p_;
+    p_ += n;
+    return p;
+  }
+  void skip(std::uint64_t n) { p_ += n; }
+  std::uint64_t remaining() const { return static_cast<std::uint64_t>(end_ - p_); }
+
+ private:
+  const char* p_;
+  const char* end_;
+};
+
+class FileBytes {
+ public:
+  explicit FileBytes(FileReader& reader) : reader_(reader) {}
+  const char* take(std::size_t n) { return reader_.take(n); }
+  void skip(std::uint64_t n) {
+    for (std::uint64_t left = n; left > 0;) {
+      const std::size_t step = static_cast<std::size_t>(std::min<std::uint64_t>(left, kStreamBufferBytes));
+      reader_.take(step);
+      left -= step;
+    }
+  }
+  std::uint64_t remaining() const { return reader_.remaining(); }
+
+ private:
+  FileReader& reader_;
+};
+
 // Reads values from the binary body with a bounds check on every read (a truncated file is an error, not UB).
+template <typename Bytes>
 class BinarySource {
  public:
-  BinarySource(const ErrorContext& ctx, std::string_view data, bool big_endian)
-      : ctx_(ctx), p_(data.data()), end_(data.data() + data.size()), big_(big_endian) {}
+  BinarySource(const ErrorContext& ctx, Bytes bytes, bool big_endian) : ctx_(ctx), bytes_(bytes), big_(big_endian) {}
 
   double real(Type t) { return decode_real(take(size_of(t)), t, big_); }
   // Integral types only (checked in the header).
@@ -186,9 +222,9 @@ class BinarySource {
   std::int64_t list_count(const Property& p) { return integer(p.count_type); }
   void skip(Type t, std::uint64_t n) {
     if (n > remaining() / size_of(t)) truncated();
-    p_ += n * size_of(t);
+    bytes_.skip(n * size_of(t));
   }
-  std::uint64_t remaining() const { return static_cast<std::uint64_t>(end_ - p_); }
+  std::uint64_t remaining() const { return bytes_.remaining(); }
   // Smallest encoding of one list item (bytes), for checking a list's count before reading it.
   static std::uint64_t min_item_bytes(Type t) { return size_of(t); }
   // The record being read ("face", 12), set by the caller for messages; formatted only on failure.
@@ -199,48 +235,7 @@ class BinarySource {
 
  private:
   const char* take(std::size_t n) {
-    if (static_cast<std::size_t>(end_ - p_) < n) truncated();
-    const char* p = p_;
-    p_ += n;
-    return p;
-  }
-  [[noreturn]] void truncated() const {
-    ctx_.fail("binary data ends inside " + *element_ + " " + std::to_string(index_) + " (truncated file)");
-  }
-
-  const ErrorContext& ctx_;
-  const std::string* element_ = nullptr;
-  std::uint64_t index_ = 0;
-  const char* p_;
-  const char* end_;
-  bool big_;
-};
-
-// BinarySource's reads over a file read front to back (out of core), with the same checks.
-class StreamSource {
- public:
-  StreamSource(const ErrorContext& ctx, FileReader& reader, bool big_endian) : ctx_(ctx), reader_(reader), big_(big_endian) {}
-  double real(Type t) { return decode_real(take(size_of(t)), t, big_); }
-  std::int64_t integer(Type t) { return decode_integer(take(size_of(t)), t, big_); }
-  std::int64_t list_count(const Property& p) { return integer(p.count_type); }
-  void skip(Type t, std::uint64_t n) {
-    if (n > remaining() / size_of(t)) truncated();
-    for (std::uint64_t left = n * size_of(t); left > 0;) {
-      const std::size_t step = static_cast<std::size_t>(std::min<std::uint64_t>(left, 1u << 20));
-      take(step);
-      left -= step;
-    }
-  }
-  std::uint64_t remaining() const { return reader_.remaining(); }
-  static std::uint64_t min_item_bytes(Type t) { return size_of(t); }
-  void at(const std::string* element, std::uint64_t index) {
-    element_ = element;
-    index_ = index;
-  }
-
- private:
-  const char* take(std::size_t n) {
-    const char* p = reader_.take(n);
+    const char* p = bytes_.take(n);
     if (p == nullptr) truncated();
     return p;
   }
@@ -249,7 +244,7 @@ class StreamSource {
   }
 
   const ErrorContext& ctx_;
-  FileReader& reader_;
+  Bytes bytes_;
   const std::string* element_ = nullptr;
   std::uint64_t index_ = 0;
   bool big_;
@@ -540,7 +535,7 @@ void stream_ply(const std::filesystem::path& path, const StreamSinks& sinks) {
   if (reader.size() == 0) ctx.fail("file is empty");
   const Header h = read_streamed_header(path, reader);
   if (h.encoding == Encoding::ascii) ctx.fail("an ASCII PLY file cannot be read out of core (binary only)");
-  StreamSource src(ctx, reader, h.encoding == Encoding::binary_be);
+  BinarySource<FileBytes> src(ctx, FileBytes(reader), h.encoding == Encoding::binary_be);
   std::uint64_t vertices = 0;
   bool have_vertices = false, have_faces = false;
   std::vector<std::uint32_t> face;
@@ -644,7 +639,7 @@ Asset read_ply(const std::filesystem::path& path, std::string_view bytes, const 
 
   BodyResult r;
   if (binary) {
-    BinarySource src(ctx, data, h.encoding == Encoding::binary_be);
+    BinarySource<MemoryBytes> src(ctx, MemoryBytes(data), h.encoding == Encoding::binary_be);
     r = read_body(src, h, ctx, options);
   } else {
     ErrorContext text_ctx{path};

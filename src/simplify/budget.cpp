@@ -291,7 +291,9 @@ class Reference {
       m.within = false;
       return m;
     }
-    Direction reverse = bound_direction(index_, lod, kReverseTolerance * budget, &m.reference_on_output, nullptr);
+    // Listing every reference triangle over the tolerance, so that a rerun of the guard gets them all at once.
+    Direction reverse =
+        bound_direction(index_, lod, kReverseTolerance * budget, &m.reference_on_output, nullptr, /*list_over=*/true);
     m.reverse_bound = reverse.bound;
     m.reverse = std::max(m.reverse, reverse.lower);
     m.within = reverse.within;
@@ -342,11 +344,13 @@ class Reference {
   };
   // The certified bound `from` → `to`, refined until it decides the budget where it can.
   Direction bound_direction(const SurfaceIndex& from, const SurfaceIndex& to, double budget,
-                            const std::vector<char>* on_target, const std::vector<double>* known) const {
+                            const std::vector<char>* on_target, const std::vector<double>* known,
+                            bool list_over = false) const {
     const std::size_t measured = static_cast<std::size_t>(std::count(on_target->begin(), on_target->end(), 0));
     DistanceBoundOptions options{.tolerance = kBoundTolerance,
                                  .good_enough = kGoodEnough * budget,
                                  .give_up_above = budget,
+                                 .list_over = list_over,
                                  .max_queries = kQueriesPerTriangle * measured + kBaseQueries,
                                  .threads = threads_,
                                  .on_target = on_target,

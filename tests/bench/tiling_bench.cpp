@@ -1,6 +1,10 @@
 // lodforge_bench_tiling: tiled vs untiled lodforge vs meshopt_simplify on the generated fBm terrain
 // (tests/bench/terrain.hpp), in one run: time, peak memory, output triangles, and the error of each LOD
-// against the terrain (lodforge's evaluator, the same samples for every method).
+// against the terrain (lodforge's evaluator, the same samples for every method). With --streamed, also the
+// out-of-core path on the same terrain written as a binary PLY. With --huge-side, only the out-of-core path on
+// a terrain written straight to disk (never held: 7072 = 100M triangles) under --memory-limit: time, the
+// child's whole peak RSS against the limit, and peak bytes per input triangle (no error: the source is not
+// in memory to measure against).
 //
 // Each method runs in its own forked child (the parent generates the terrain once): the child resets its
 // peak-RSS mark, simplifies, reads VmHWM (peak RSS during the call minus RSS before it), then measures the
@@ -18,6 +22,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <nlohmann/json.hpp>
@@ -27,6 +32,7 @@
 #include "lodforge/core/mesh.hpp"
 #include "lodforge/eval/eval.hpp"
 #include "lodforge/simplify/simplify.hpp"
+#include "lodforge/tiling/stream.hpp"
 #include "lodforge/tiling/tiling.hpp"
 #include "meshopt_peer.hpp"
 #include "terrain.hpp"
@@ -42,10 +48,11 @@ struct Figures {
   double seconds = NAN, peak_mb = NAN;
   double triangles = 0, rms_rel = NAN, mean_rel = NAN, hausdorff_rel = NAN;
   double passes = 0, tile_runs = 0, setup_ms = 0, collapse_ms = 0;
+  double whole_peak_mb = NAN;  // the child's whole peak RSS (VmHWM), not only its growth
 };
 
 // Runs `make` in a forked child and brings back its figures.
-Figures in_child(const Mesh& terrain, const std::function<Mesh(Figures&)>& make, std::size_t eval_samples,
+Figures in_child(const Mesh* terrain, const std::function<Mesh(Figures&)>& make, std::size_t eval_samples,
                  unsigned threads) {
   int fd[2];
   if (pipe(fd) != 0) return {};
@@ -66,13 +73,16 @@ Figures in_child(const Mesh& terrain, const std::function<Mesh(Figures&)>& make,
       const auto t0 = std::chrono::steady_clock::now();
       const Mesh lod = make(f);
       f.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      f.whole_peak_mb = static_cast<double>(status_kb("VmHWM:")) / 1024.0;
       f.peak_mb = static_cast<double>(status_kb("VmHWM:") - before) / 1024.0;
       f.triangles = static_cast<double>(lod.face_count());
-      const lodforge::EvalResult e =
-          lodforge::evaluate(terrain, lod, {.samples = eval_samples, .include_vertices = false});
-      f.rms_rel = e.rms_rel();
-      f.mean_rel = e.mean_rel();
-      f.hausdorff_rel = e.hausdorff_rel();
+      if (terrain != nullptr) {
+        const lodforge::EvalResult e =
+            lodforge::evaluate(*terrain, lod, {.samples = eval_samples, .include_vertices = false});
+        f.rms_rel = e.rms_rel();
+        f.mean_rel = e.mean_rel();
+        f.hausdorff_rel = e.hausdorff_rel();
+      }
     }
     const ssize_t w = write(fd[1], &f, sizeof f);
     _exit(w == static_cast<ssize_t>(sizeof f) ? 0 : 1);
@@ -106,7 +116,62 @@ int main(int argc, char** argv) {
   app.add_option("--eval-samples", eval_samples, "area samples per direction for the error")->capture_default_str();
   app.add_flag("--skip-untiled", skip_untiled, "leave out the untiled lodforge run (the slowest)");
   app.add_option("--json", json_path, "write the figures as JSON");
+  bool streamed = false;
+  std::size_t huge_side = 0;
+  std::string memory_limit_text, scratch = "bench-tmp";
+  app.add_flag("--streamed", streamed, "also run the out-of-core path on the terrain written as a binary PLY");
+  app.add_option("--huge-side", huge_side,
+                 "only the out-of-core path, on a terrain of this side written straight to disk (7072: 100M triangles)");
+  app.add_option("--memory-limit", memory_limit_text, "limit for the out-of-core runs (plans their tiles), e.g. 6G");
+  app.add_option("--scratch", scratch, "folder for the terrain file and the tiles")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  const std::size_t memory_limit = memory_limit_text.empty() ? 0 : lodforge::tiling::parse_memory_size(memory_limit_text);
+  std::filesystem::create_directories(scratch);
+  // One out-of-core run of `file` in a child: planned under the limit where there is one.
+  auto streamed_run = [&](const std::string& file, std::size_t target) {
+    return [&, file, target](Figures& f) {
+      lodforge::SimplifyOptions o;
+      o.target_triangles = target;
+      o.threads = threads;
+      std::size_t tile = tile_triangles;
+      if (memory_limit > 0) {
+        const lodforge::tiling::StreamPlan plan = lodforge::tiling::plan_stream(file, o, memory_limit, threads);
+        std::printf("plan under %s: tiles of %zu triangles, estimate %zu MB (fits: %s)\n", memory_limit_text.c_str(),
+                    plan.tile_triangles, plan.stream_bytes >> 20, plan.fits ? "yes" : "no");
+        std::fflush(stdout);
+        tile = plan.tile_triangles;
+      }
+      lodforge::tiling::StreamedRun r =
+          lodforge::tiling::simplify_streamed(file, o, tile, std::filesystem::path(scratch) / "tiles", memory_limit);
+      f.passes = static_cast<double>(r.result.tiling_passes);
+      f.tile_runs = static_cast<double>(r.result.tile_runs);
+      return std::move(r.result.mesh);
+    };
+  };
+  if (huge_side > 0) {
+    const std::size_t n = 2 * (huge_side - 1) * (huge_side - 1);
+    const auto target = static_cast<std::size_t>(std::llround(ratio * static_cast<double>(n)));
+    const std::string file = (std::filesystem::path(scratch) / ("terrain-" + std::to_string(huge_side) + ".ply")).string();
+    const auto t0 = std::chrono::steady_clock::now();
+    if (!lodforge::bench::write_fbm_terrain_ply(huge_side, file)) {
+      std::fprintf(stderr, "cannot write %s\n", file.c_str());
+      return 1;
+    }
+    std::printf("terrain %zu x %zu written to %s (%.1f GB) in %.1f s: %zu triangles -> %zu, %u thread(s), limit %s\n",
+                huge_side, huge_side, file.c_str(), static_cast<double>(std::filesystem::file_size(file)) / 1e9,
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), n, target, threads,
+                memory_limit_text.empty() ? "none" : memory_limit_text.c_str());
+    const Figures f = in_child(nullptr, streamed_run(file, target), 0, threads);
+    std::filesystem::remove(file);
+    const double limit_mb = static_cast<double>(memory_limit) / 1048576.0;
+    std::printf("out of core: %.0f triangles in %.1f s, peak RSS %.0f MB (%.1f bytes per input triangle), %.0f tile runs\n",
+                f.triangles, f.seconds, f.whole_peak_mb, f.whole_peak_mb * 1048576.0 / static_cast<double>(n), f.tile_runs);
+    if (memory_limit > 0) {
+      std::printf("target: finishes under the limit (within 10%%): peak %.0f MB of %.0f MB (%s)\n", f.whole_peak_mb,
+                  limit_mb, f.triangles > 0 && f.whole_peak_mb <= 1.1 * limit_mb ? "met" : "not met");
+    }
+    return f.triangles > 0 ? 0 : 1;
+  }
 
   Mesh terrain;
   std::vector<std::uint32_t> indices;
@@ -142,10 +207,16 @@ int main(int argc, char** argv) {
     };
   };
   const Figures meshopt = in_child(
-      terrain, [&](Figures&) { return lodforge::bench::meshopt_lod(terrain, indices, target); }, eval_samples, threads);
-  const Figures tiled = in_child(terrain, lodforge_run(lodforge::TilingMode::on), eval_samples, threads);
-  Figures untiled;
-  if (!skip_untiled) untiled = in_child(terrain, lodforge_run(lodforge::TilingMode::off), eval_samples, threads);
+      &terrain, [&](Figures&) { return lodforge::bench::meshopt_lod(terrain, indices, target); }, eval_samples, threads);
+  const Figures tiled = in_child(&terrain, lodforge_run(lodforge::TilingMode::on), eval_samples, threads);
+  Figures untiled, stream;
+  if (!skip_untiled) untiled = in_child(&terrain, lodforge_run(lodforge::TilingMode::off), eval_samples, threads);
+  if (streamed) {
+    const std::string file = (std::filesystem::path(scratch) / "terrain.ply").string();
+    lodforge::bench::write_fbm_terrain_ply(side, file);
+    stream = in_child(&terrain, streamed_run(file, target), eval_samples, threads);
+    std::filesystem::remove(file);
+  }
 
   std::printf("%-18s %10s %9s %10s %11s %11s %11s\n", "method", "triangles", "time s", "peak MB", "RMS %diag",
               "mean %diag", "Hausdorff %");
@@ -156,6 +227,7 @@ int main(int argc, char** argv) {
   row("meshopt_simplify", meshopt);
   row("lodforge tiled", tiled);
   if (!skip_untiled) row("lodforge untiled", untiled);
+  if (streamed) row("lodforge streamed", stream);
   std::printf("tiled: %.0f pass(es), %.0f tile run(s); cut and stitch %.0f ms, tile runs %.0f ms\n", tiled.passes,
               tiled.tile_runs, tiled.setup_ms, tiled.collapse_ms);
   const double speed = tiled.seconds / meshopt.seconds;
@@ -184,6 +256,7 @@ int main(int argc, char** argv) {
                      {"meshopt", obj(meshopt)},
                      {"tiled", obj(tiled)}};
     if (!skip_untiled) j["untiled"] = obj(untiled);
+    if (streamed) j["streamed"] = obj(stream);
     std::ofstream(json_path) << j.dump(2) << "\n";
   }
   return 0;

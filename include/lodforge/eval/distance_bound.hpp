@@ -39,6 +39,9 @@ struct DistanceBoundOptions {
   double good_enough = 0.0;
   // Stop as soon as a measured distance exceeds this (the caller only needs to know that it does).
   double give_up_above = std::numeric_limits<double>::infinity();
+  // Instead of stopping there, set aside the parts measured over it and bound the rest: `over` then names
+  // every triangle found over it (as far as the query allowance goes), not only the first round's.
+  bool list_over = false;
   int max_rounds = 24;     // each round halves the triangles' size
   std::size_t max_queries = 0;  // 0: 64 × triangles + 1M; past it the bound stays valid, only looser
   unsigned threads = 0;    // 0 = all cores
@@ -57,7 +60,7 @@ struct DistanceBound {
   int rounds = 0;
   bool gave_up = false;  // stopped because `lower` exceeded give_up_above (then `upper` is +inf)
   // When it gave up: the mesh's triangles (their index in triangle order, ascending) where the last round
-  // measured a point farther than give_up_above.
+  // (with list_over, any round) measured a point farther than give_up_above.
   std::vector<std::uint32_t> over;
   // Every part of the mesh got its bound within the tolerance (or good_enough); false when max_rounds or
   // max_queries stopped the refinement first: `upper` is still a bound, only looser. Parts lying flat on the

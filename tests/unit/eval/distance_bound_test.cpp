@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -180,6 +181,39 @@ TEST(DistanceBound, NamesTheTrianglesOverTheThresholdAndTakesAnIndexedSurface) {
   EXPECT_DOUBLE_EQ(mesh.upper, indexed.upper);
   EXPECT_DOUBLE_EQ(mesh.lower, indexed.lower);
   EXPECT_DOUBLE_EQ(mesh.lower, 1.0);
+}
+
+// Listing goes on past the first part over the threshold and names every triangle with one: here the tent's
+// base (its corners lie on the tent, its middle 0.89 below it) and a triangle far off the tent.
+TEST(DistanceBound, ListsEveryTriangleOverTheThreshold) {
+  Mesh tent;
+  for (const Vec3f& p : {Vec3f{{0, 0, 0}}, Vec3f{{4, 0, 0}}, Vec3f{{4, 4, 0}}, Vec3f{{0, 4, 0}}, Vec3f{{2, 2, 1}}}) {
+    tent.add_vertex_with_wedge(p);
+  }
+  for (std::uint32_t i = 0; i < 4; ++i) tent.add_face({i, (i + 1) % 4, 4});
+  Mesh m;
+  for (const Vec3f& p : {Vec3f{{0, 0, 0}}, Vec3f{{4, 0, 0}}, Vec3f{{4, 4, 0}}, Vec3f{{0, 4, 0}}, Vec3f{{0.5f, 0, 0}},
+                         Vec3f{{1, 0, 0}}, Vec3f{{0.5f, 0.2f, 0.2f}}, Vec3f{{8, 0, 0}}, Vec3f{{9, 0, 0}}, Vec3f{{8, 1, 1}}}) {
+    m.add_vertex_with_wedge(p);
+  }
+  m.add_face({0, 1, 2});
+  m.add_face({0, 2, 3});
+  m.add_face({4, 5, 6});  // near the tent's base edge: within the threshold
+  m.add_face({7, 8, 9});  // far off the tent
+  const SurfaceIndex target(tent);
+  // 0.7: the base's corners and centroids (0.60 away) are under it, the points near its middle over it.
+  const DistanceBound listed = distance_bound(m, target, {.give_up_above = 0.7, .list_over = true, .threads = 1});
+  EXPECT_TRUE(listed.gave_up);
+  EXPECT_TRUE(std::isinf(listed.upper));
+  EXPECT_EQ(listed.over, (std::vector<std::uint32_t>{0, 1, 3}));
+  const DistanceBound first = distance_bound(m, target, {.give_up_above = 0.7, .threads = 1});
+  EXPECT_TRUE(first.gave_up);
+  EXPECT_TRUE(std::includes(listed.over.begin(), listed.over.end(), first.over.begin(), first.over.end()));
+  EXPECT_LT(first.over.size(), listed.over.size()) << "without listing it stops at the first round over";
+  // Nothing over: listing changes nothing.
+  const DistanceBound none = distance_bound(m, target, {.give_up_above = 100, .list_over = true, .threads = 1});
+  EXPECT_FALSE(none.gave_up);
+  EXPECT_TRUE(none.over.empty());
 }
 
 }  // namespace
