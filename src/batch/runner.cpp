@@ -1573,6 +1573,21 @@ Selection select_assets(const BatchConfig& config, const RunOptions& options) {
   return sel;
 }
 
+// The saved terrain builds (load_terrain) of maps the library no longer holds, and the temporary files of writes
+// that did not finish. Every shard scans the whole library, so no shard removes another's maps.
+void prune_terrain_saves(const fs::path& output_dir, const std::vector<std::string>& library) {
+  const fs::path folder = output_dir / kCacheFolder / "terrain";
+  std::error_code ec;
+  if (!fs::is_directory(folder, ec)) return;
+  std::set<std::string> kept;
+  for (const std::string& p : library) kept.insert(Hasher().bytes(p).hex() + ".bin");
+  std::vector<fs::path> stale;
+  for (auto it = fs::directory_iterator(folder, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
+    if (!kept.contains(it->path().filename().string())) stale.push_back(it->path());
+  }
+  for (const fs::path& f : stale) fs::remove(f, ec);
+}
+
 std::string describe_target(const LodTarget& t) {
   const Json j = target_json(t);
   char value[32];
@@ -1729,6 +1744,7 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
   const Cache cache(options.output_dir, tag);
 
   cache.remove_leftovers(paths);
+  prune_terrain_saves(options.output_dir, scan.assets);
   remove_report_leftovers(options.output_dir, {report_stem + ".json", report_stem + ".html", manifest_stem + ".json"});
 
   std::vector<Json> records(paths.size());

@@ -283,7 +283,7 @@ bool simplify_out_of_core(const std::string& in, const std::string& out, const S
   const bool verified = opt.verify_budget && (opt.max_error_rel >= 0.0 || opt.max_error_abs >= 0.0);
   if (!plan.fits || !tileable || verified) {
     std::fprintf(stderr,
-                 "error: %s: %llu triangles do not fit in --memory-limit %s loaded whole (about %zu MB), and %s\n",
+                 "error: %s: %llu triangles do not fit in --memory-limit %s loaded whole (about %zu MiB), and %s\n",
                  in.c_str(), static_cast<unsigned long long>(plan.counts.triangles), limit_text.c_str(),
                  plan.whole_bytes >> 20,
                  !tileable  ? "this engine cannot tile, so cannot stream either"
@@ -294,7 +294,7 @@ bool simplify_out_of_core(const std::string& in, const std::string& out, const S
     return true;
   }
   std::printf("%s: about %zu MB loaded whole, over --memory-limit %s: streamed out of core in tiles of %zu "
-              "triangles (about %zu MB)\n",
+              "triangles (about %zu MiB)\n",
               in.c_str(), plan.whole_bytes >> 20, limit_text.c_str(), plan.tile_triangles, plan.stream_bytes >> 20);
   const std::filesystem::path scratch = std::filesystem::path(out).concat(".lodforge-tiles");
   struct RemoveScratch {
@@ -504,8 +504,8 @@ void register_simplify(CLI::App& app) {
         if (plans[i].force_tiling) {
           mesh_opt.tiling = TilingMode::on;
           mesh_opt.tile_triangles = plans[i].tile_triangles;
-          std::printf("mesh %zu: about %zu MB untiled, over --memory-limit %s: tiled in tiles of %zu triangles "
-                      "(about %zu MB)\n",
+          std::printf("mesh %zu: about %zu MiB untiled, over --memory-limit %s: tiled in tiles of %zu triangles "
+                      "(about %zu MiB)\n",
                       i, plans[i].untiled_bytes >> 20, a->memory_limit.c_str(), plans[i].tile_triangles,
                       plans[i].tiled_bytes >> 20);
         }

@@ -155,6 +155,24 @@ TEST(TerrainRunner, AChangedRegionRebuildsOnlyItsPatchesAcrossRuns) {
   EXPECT_EQ(record_of(r.report, "terrain/hills_97x65.r16")["terrain"]["rebuilt_patches"], 6);
 }
 
+// The saved build of a map that left the library goes with it; the others stay.
+TEST(TerrainRunner, SavedBuildsOfRemovedMapsArePruned) {
+  const fs::path dir = testing::temp_dir("terrain_runner_prune");
+  const fs::path lib = dir / "lib";
+  write_maps(lib);
+  const BatchConfig cfg = terrain_config();
+  ASSERT_EQ(run_batch(cfg, {.input_dir = lib, .output_dir = dir / "out", .jobs = 2}).succeeded, 2u);
+  const fs::path saves = dir / "out/.lodforge-cache/terrain";
+  auto count = [&] { return std::distance(fs::directory_iterator(saves), fs::directory_iterator()); };
+  ASSERT_EQ(count(), 2);
+  io::write_file_atomic(saves / "leftover.bin.tmp-1", "x");
+  fs::remove(lib / "terrain/hills_97x65.r16");
+  const RunResult r = run_batch(cfg, {.input_dir = lib, .output_dir = dir / "out", .jobs = 2});
+  EXPECT_EQ(r.succeeded, 1u);
+  EXPECT_EQ(r.cache_hits, 1u);  // the PNG
+  EXPECT_EQ(count(), 1) << "the removed map's build and the leftover are gone, the PNG's stays";
+}
+
 TEST(TerrainRunner, RawMapsNoTerrainClassTakesAreUnsupported) {
   const fs::path dir = testing::temp_dir("terrain_runner_unmatched");
   const fs::path lib = dir / "lib";
