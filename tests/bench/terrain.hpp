@@ -10,8 +10,6 @@
 #include <string>
 #include <vector>
 
-#include <tbb/parallel_for.h>
-
 #include "lodforge/core/vec.hpp"
 
 namespace lodforge::bench {
@@ -47,10 +45,12 @@ inline Vec3f fbm_vertex(std::size_t side, std::size_t i, std::size_t j) {
 }
 
 inline void make_fbm_terrain(std::size_t side, std::vector<Vec3f>& positions, std::vector<std::uint32_t>& indices) {
+  // One thread on purpose: the benches fork their measured runs after generating, and a child forked from a
+  // process that has started TBB's workers runs its own parallel loops on one thread.
   positions.assign(side * side, Vec3f{});
-  tbb::parallel_for(std::size_t{0}, side, [&](std::size_t i) {
+  for (std::size_t i = 0; i < side; ++i) {
     for (std::size_t j = 0; j < side; ++j) positions[i * side + j] = fbm_vertex(side, i, j);
-  });
+  }
   indices.clear();
   indices.reserve(6 * (side - 1) * (side - 1));
   for (std::size_t i = 0; i + 1 < side; ++i) {
@@ -71,7 +71,7 @@ inline bool write_fbm_terrain_ply(std::size_t side, const std::string& path) {
       << "\nproperty list uchar int vertex_indices\nend_header\n";
   std::vector<Vec3f> row(side);
   for (std::size_t i = 0; i < side; ++i) {
-    tbb::parallel_for(std::size_t{0}, side, [&](std::size_t j) { row[j] = fbm_vertex(side, i, j); });
+    for (std::size_t j = 0; j < side; ++j) row[j] = fbm_vertex(side, i, j);  // one thread, as above
     out.write(reinterpret_cast<const char*>(row.data()), static_cast<std::streamsize>(row.size() * sizeof(Vec3f)));
   }
   std::vector<char> record;
