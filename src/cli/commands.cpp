@@ -293,7 +293,7 @@ bool simplify_out_of_core(const std::string& in, const std::string& out, const S
     set_exit_code(2);
     return true;
   }
-  std::printf("%s: about %zu MB loaded whole, over --memory-limit %s: streamed out of core in tiles of %zu "
+  std::printf("%s: about %zu MiB loaded whole, over --memory-limit %s: streamed out of core in tiles of %zu "
               "triangles (about %zu MiB)\n",
               in.c_str(), plan.whole_bytes >> 20, limit_text.c_str(), plan.tile_triangles, plan.stream_bytes >> 20);
   const std::filesystem::path scratch = std::filesystem::path(out).concat(".lodforge-tiles");

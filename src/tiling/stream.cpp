@@ -27,7 +27,6 @@ using detail::TileRun;
 // Triangles buffered per tile before they are appended to its file (three ids each).
 constexpr std::size_t kFlushTriangles = std::size_t{1} << 13;
 constexpr std::uint32_t kShared = kInvalidIndex - 1;  // owner of a vertex used by two or more tiles
-constexpr std::size_t kCellFill = 2;
 
 std::filesystem::path tile_path(const std::filesystem::path& scratch, std::size_t tile) {
   return scratch / ("tile-" + std::to_string(tile) + ".bin");
@@ -184,9 +183,11 @@ StreamedRun simplify_streamed(const std::filesystem::path& path, const SimplifyO
   run.input_vertices = positions.size();
   std::vector<std::uint32_t> canon = weld(positions);
 
-  // Cells as the in-memory cut makes them, for half of tile_triangles each: the surface's density varies, and
-  // a tile may hold twice what its area suggests.
-  const double per_tile = static_cast<double>(std::max<std::size_t>(tile_triangles / kCellFill, 1)) /
+  // Cells as the in-memory cut makes them, about tile_triangles of surface each (a tile may hold more where
+  // the surface is denser; the batches below keep the tiles in memory at once within the plan). Cells of half
+  // that made the 16.8M-triangle terrain's LOD 1.39x the RMS distance at 1% (more locked cut vertices in the
+  // first pass), for 0.7x the time.
+  const double per_tile = static_cast<double>(std::max<std::size_t>(tile_triangles, 1)) /
                           static_cast<double>(std::max<std::uint64_t>(triangles, 1));
   double cell = std::sqrt(area * per_tile);
   const double diagonal = box.empty() ? 0.0 : box.diagonal();
