@@ -304,7 +304,8 @@ bool simplify_out_of_core(const std::string& in, const std::string& out, const S
       std::filesystem::remove_all(path, ec);
     }
   } remove_scratch{scratch};
-  tiling::StreamedRun run = tiling::simplify_streamed(in, opt, plan.tile_triangles, scratch, memory_limit);
+  tiling::StreamedRun run =
+      tiling::simplify_streamed(in, opt, plan.tile_triangles, scratch, memory_limit, plan.counts.vertices);
   for (const std::string& w : run.warnings) std::printf("warning: %s\n", w.c_str());
   const SimplifyResult& r = run.result;
   const double diagonal = compute_bounds(r.mesh).diagonal();

@@ -147,31 +147,21 @@ Header parse_header(const std::filesystem::path& path, std::string_view bytes) {
   return h;
 }
 
-// One binary value at p (size_of(t) bytes), in the file's byte order.
-double decode_real(const char* p, Type t, bool big) {
+// One binary value at p (size_of(t) bytes), in the file's byte order, as T (integers are read as integers, so
+// a 64-bit T holds every index exactly).
+template <typename T>
+T decode(const char* p, Type t, bool big) {
   switch (t) {
-    case Type::i8: return static_cast<std::int8_t>(*p);
-    case Type::u8: return static_cast<std::uint8_t>(*p);
-    case Type::i16: return parse::load<std::int16_t>(p, big);
-    case Type::u16: return parse::load<std::uint16_t>(p, big);
-    case Type::i32: return parse::load<std::int32_t>(p, big);
-    case Type::u32: return parse::load<std::uint32_t>(p, big);
-    case Type::f32: return parse::load<float>(p, big);
-    case Type::f64: return parse::load<double>(p, big);
+    case Type::i8: return static_cast<T>(static_cast<std::int8_t>(*p));
+    case Type::u8: return static_cast<T>(static_cast<std::uint8_t>(*p));
+    case Type::i16: return static_cast<T>(parse::load<std::int16_t>(p, big));
+    case Type::u16: return static_cast<T>(parse::load<std::uint16_t>(p, big));
+    case Type::i32: return static_cast<T>(parse::load<std::int32_t>(p, big));
+    case Type::u32: return static_cast<T>(parse::load<std::uint32_t>(p, big));
+    case Type::f32: return static_cast<T>(parse::load<float>(p, big));
+    case Type::f64: return static_cast<T>(parse::load<double>(p, big));
   }
   return 0;
-}
-// Integral types only.
-std::int64_t decode_integer(const char* p, Type t, bool big) {
-  switch (t) {
-    case Type::i8: return static_cast<std::int8_t>(*p);
-    case Type::u8: return static_cast<std::uint8_t>(*p);
-    case Type::i16: return parse::load<std::int16_t>(p, big);
-    case Type::u16: return parse::load<std::uint16_t>(p, big);
-    case Type::i32: return parse::load<std::int32_t>(p, big);
-    case Type::u32: return parse::load<std::uint32_t>(p, big);
-    default: return 0;
-  }
 }
 
 // Where BinarySource's bytes come from: the body held in memory, or a file read front to back (out of core).
@@ -216,9 +206,9 @@ class BinarySource {
  public:
   BinarySource(const ErrorContext& ctx, Bytes bytes, bool big_endian) : ctx_(ctx), bytes_(bytes), big_(big_endian) {}
 
-  double real(Type t) { return decode_real(take(size_of(t)), t, big_); }
+  double real(Type t) { return decode<double>(take(size_of(t)), t, big_); }
   // Integral types only (checked in the header).
-  std::int64_t integer(Type t) { return decode_integer(take(size_of(t)), t, big_); }
+  std::int64_t integer(Type t) { return decode<std::int64_t>(take(size_of(t)), t, big_); }
   std::int64_t list_count(const Property& p) { return integer(p.count_type); }
   void skip(Type t, std::uint64_t n) {
     if (n > remaining() / size_of(t)) truncated();
@@ -454,18 +444,17 @@ void read_vertices(Source& src, const Element& e, Mesh& mesh, const ErrorContext
   }
 }
 
-template <typename Source>
-void read_faces(Source& src, const Element& e, Mesh& mesh, const ErrorContext& ctx, const LoadOptions& options) {
+// The face element's polygons: per face, its index list's count is checked (at least 3, no more than the data
+// left holds) and `face(f, count, type)` reads the `count` indices (src.integer(type)).
+template <typename Source, typename Face>
+void for_each_face(Source& src, const Element& e, const ErrorContext& ctx, Face&& face) {
   const Property* list = nullptr;
   for (const Property& p : e.properties) {
     if (is_face_list(p)) list = &p;
   }
   if (!list) ctx.fail("the face element has no vertex_indices list");
   if (!is_integral(list->type)) ctx.fail("the face vertex_indices list has a non-integer item type");
-  const auto n = static_cast<std::size_t>(e.count);  // checked against the file size by the caller
-  mesh.face_offsets.reserve(n + 1);
-  mesh.corner_wedge.reserve(n * 3);
-  for (std::size_t f = 0; f < n; ++f) {
+  for (std::uint64_t f = 0; f < e.count; ++f) {
     src.at(&e.name, f);
     for (const Property& p : e.properties) {
       if (&p != list) {
@@ -478,18 +467,28 @@ void read_faces(Source& src, const Element& e, Mesh& mesh, const ErrorContext& c
         ctx.fail("face " + std::to_string(f) + " declares " + std::to_string(count) +
                  " vertices, more than the remaining data holds");
       }
-      for (std::int64_t c = 0; c < count; ++c) {
-        const std::int64_t index = src.integer(p.type);
-        // The vertex element may come after the faces, so the upper bound is checked once all is read.
-        if (index < 0 || index >= std::int64_t{0xffffffff}) {
-          ctx.fail("face " + std::to_string(f) + " uses vertex index " + std::to_string(index) + ", out of range");
-        }
-        mesh.corner_wedge.push_back(static_cast<std::uint32_t>(index));
-      }
-      parse::check_element_cap(ctx, "face corners", mesh.corner_wedge.size(), options);
-      mesh.face_offsets.push_back(static_cast<std::uint32_t>(mesh.corner_wedge.size()));
+      face(f, count, p.type);
     }
   }
+}
+
+template <typename Source>
+void read_faces(Source& src, const Element& e, Mesh& mesh, const ErrorContext& ctx, const LoadOptions& options) {
+  const auto n = static_cast<std::size_t>(e.count);  // checked against the file size by the caller
+  mesh.face_offsets.reserve(n + 1);
+  mesh.corner_wedge.reserve(n * 3);
+  for_each_face(src, e, ctx, [&](std::uint64_t f, std::int64_t count, Type type) {
+    for (std::int64_t c = 0; c < count; ++c) {
+      const std::int64_t index = src.integer(type);
+      // The vertex element may come after the faces, so the upper bound is checked once all is read.
+      if (index < 0 || index >= std::int64_t{0xffffffff}) {
+        ctx.fail("face " + std::to_string(f) + " uses vertex index " + std::to_string(index) + ", out of range");
+      }
+      mesh.corner_wedge.push_back(static_cast<std::uint32_t>(index));
+    }
+    parse::check_element_cap(ctx, "face corners", mesh.corner_wedge.size(), options);
+    mesh.face_offsets.push_back(static_cast<std::uint32_t>(mesh.corner_wedge.size()));
+  });
 }
 
 template <typename Source>
@@ -574,37 +573,18 @@ void stream_ply(const std::filesystem::path& path, const StreamSinks& sinks) {
       have_vertices = true;
     } else if (e.name == "face" && !have_faces) {
       if (!have_vertices) ctx.fail("the face element comes before the vertex element (out of core, vertices must come first)");
-      const Property* list = nullptr;
-      for (const Property& p : e.properties) {
-        if (is_face_list(p)) list = &p;
-      }
-      if (!list) ctx.fail("the face element has no vertex_indices list");
-      if (!is_integral(list->type)) ctx.fail("the face vertex_indices list has a non-integer item type");
-      for (std::uint64_t f = 0; f < e.count; ++f) {
-        src.at(&e.name, f);
-        for (const Property& p : e.properties) {
-          if (&p != list) {
-            skip_property(src, p);
-            continue;
+      for_each_face(src, e, ctx, [&](std::uint64_t f, std::int64_t count, Type type) {
+        face.clear();
+        for (std::int64_t c = 0; c < count; ++c) {
+          const std::int64_t index = src.integer(type);
+          if (index < 0 || static_cast<std::uint64_t>(index) >= vertices) {
+            ctx.fail("face " + std::to_string(f) + " uses vertex " + std::to_string(index) + " but the file has " +
+                     std::to_string(vertices) + " vertices");
           }
-          const std::int64_t count = src.list_count(p);
-          if (count < 3) ctx.fail("face " + std::to_string(f) + " has " + std::to_string(count) + " vertices (at least 3 needed)");
-          if (static_cast<std::uint64_t>(count) > src.remaining() / size_of(p.type)) {
-            ctx.fail("face " + std::to_string(f) + " declares " + std::to_string(count) +
-                     " vertices, more than the remaining data holds");
-          }
-          face.clear();
-          for (std::int64_t c = 0; c < count; ++c) {
-            const std::int64_t index = src.integer(p.type);
-            if (index < 0 || static_cast<std::uint64_t>(index) >= vertices) {
-              ctx.fail("face " + std::to_string(f) + " uses vertex " + std::to_string(index) + " but the file has " +
-                       std::to_string(vertices) + " vertices");
-            }
-            face.push_back(static_cast<std::uint32_t>(index));
-          }
-          sinks.face(face);
+          face.push_back(static_cast<std::uint32_t>(index));
         }
-      }
+        sinks.face(face);
+      });
       have_faces = true;
     } else {
       for (std::uint64_t i = 0; i < e.count; ++i) {

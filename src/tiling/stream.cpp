@@ -27,6 +27,7 @@ using detail::TileRun;
 // Triangles buffered per tile before they are appended to its file (three ids each).
 constexpr std::size_t kFlushTriangles = std::size_t{1} << 13;
 constexpr std::uint32_t kShared = kInvalidIndex - 1;  // owner of a vertex used by two or more tiles
+constexpr std::uint64_t kMaxVertexHint = std::uint64_t{1} << 32;  // a hint above 32-bit ids is not believed
 
 std::filesystem::path tile_path(const std::filesystem::path& scratch, std::size_t tile) {
   return scratch / ("tile-" + std::to_string(tile) + ".bin");
@@ -143,7 +144,7 @@ StreamPlan plan_stream(const std::filesystem::path& path, const SimplifyOptions&
 
 StreamedRun simplify_streamed(const std::filesystem::path& path, const SimplifyOptions& options,
                               std::size_t tile_triangles, const std::filesystem::path& scratch,
-                              std::size_t memory_limit) {
+                              std::size_t memory_limit, std::uint64_t vertices_hint) {
   StreamedRun run;
   if (!detail::may_tile(options)) {
     throw std::invalid_argument("simplify: these options cannot tile (engine, verified error budget or volume budget), "
@@ -161,6 +162,7 @@ StreamedRun simplify_streamed(const std::filesystem::path& path, const SimplifyO
   std::uint64_t triangles = 0;
   double area = 0;
   Bounds3 box;
+  if (vertices_hint <= kMaxVertexHint) positions.reserve(static_cast<std::size_t>(vertices_hint));
   {
     io::StreamSinks sinks;
     sinks.vertex = [&](const Vec3f& p) {

@@ -134,15 +134,17 @@ int main(int argc, char** argv) {
       o.target_triangles = target;
       o.threads = threads;
       std::size_t tile = tile_triangles;
+      std::uint64_t vertices = 0;
       if (memory_limit > 0) {
         const lodforge::tiling::StreamPlan plan = lodforge::tiling::plan_stream(file, o, memory_limit, threads);
         std::printf("plan under %s: tiles of %zu triangles, estimate %zu MB (fits: %s)\n", memory_limit_text.c_str(),
                     plan.tile_triangles, plan.stream_bytes >> 20, plan.fits ? "yes" : "no");
         std::fflush(stdout);
         tile = plan.tile_triangles;
+        vertices = plan.counts.vertices;
       }
-      lodforge::tiling::StreamedRun r =
-          lodforge::tiling::simplify_streamed(file, o, tile, std::filesystem::path(scratch) / "tiles", memory_limit);
+      lodforge::tiling::StreamedRun r = lodforge::tiling::simplify_streamed(
+          file, o, tile, std::filesystem::path(scratch) / "tiles", memory_limit, vertices);
       f.passes = static_cast<double>(r.result.tiling_passes);
       f.tile_runs = static_cast<double>(r.result.tile_runs);
       return std::move(r.result.mesh);

@@ -44,8 +44,9 @@ struct StreamedRun {
 // The out-of-core run: tiles of at most `tile_triangles` written under `scratch` (created; its tile files are
 // removed as they are read). The result's triangles_before counts the triangles after fan triangulation.
 // Deterministic for any thread count. Throws io::IoError for a bad file, std::invalid_argument as simplify().
+// `vertices_hint` (plan_stream()'s count, 0: none) sizes the positions at once instead of by doubling.
 StreamedRun simplify_streamed(const std::filesystem::path& path, const SimplifyOptions& options,
                               std::size_t tile_triangles, const std::filesystem::path& scratch,
-                              std::size_t memory_limit = 0);
+                              std::size_t memory_limit = 0, std::uint64_t vertices_hint = 0);
 
 }  // namespace lodforge::tiling
