@@ -150,6 +150,12 @@ StreamedRun simplify_streamed(const std::filesystem::path& path, const SimplifyO
     throw std::invalid_argument("simplify: these options cannot tile (engine, verified error budget or volume budget), "
                                 "so the file cannot be simplified out of core");
   }
+  // Vertex ids given by the caller (locks, a mirror map) name a loaded mesh's vertices, which a stream never
+  // builds.
+  if (!options.locked_vertices.empty() || options.vertex_mirror != nullptr) {
+    throw std::invalid_argument("simplify: locked vertices and a vertex mirror map need the mesh loaded whole, "
+                                "not streamed out of core");
+  }
   {
     std::error_code ec;
     std::filesystem::create_directories(scratch, ec);

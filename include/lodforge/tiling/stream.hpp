@@ -43,7 +43,8 @@ struct StreamedRun {
 };
 // The out-of-core run: tiles of at most `tile_triangles` written under `scratch` (created; its tile files are
 // removed as they are read). The result's triangles_before counts the triangles after fan triangulation.
-// Deterministic for any thread count. Throws io::IoError for a bad file, std::invalid_argument as simplify().
+// Deterministic for any thread count. Throws io::IoError for a bad file, std::invalid_argument as simplify() and
+// for options that cannot stream (an engine or budget that cannot tile, locked vertices, a vertex mirror map).
 // `vertices_hint` (plan_stream()'s count, 0: none) sizes the positions at once instead of by doubling.
 StreamedRun simplify_streamed(const std::filesystem::path& path, const SimplifyOptions& options,
                               std::size_t tile_triangles, const std::filesystem::path& scratch,

@@ -577,7 +577,10 @@ TEST(TilingStream, PlansToStreamOnlyWhatCannotLoadWhole) {
   EXPECT_GE(tight.tile_triangles, kMinStreamTile);
   EXPECT_LE(tight.stream_bytes, (std::size_t{32} << 20) - (std::size_t{32} << 17));
   EXPECT_FALSE(plan_stream(ply, o, std::size_t{16} << 20, 2).fits);
-  // An engine that cannot tile cannot stream.
+  // An engine that cannot tile cannot stream, nor can vertex ids of a mesh never loaded.
+  SimplifyOptions locked = o;
+  locked.locked_vertices = {0};
+  EXPECT_THROW(simplify_streamed(ply, locked, 3000, dir / "tiles"), std::invalid_argument);
   o.engine = Engine::polychord;
   EXPECT_THROW(simplify_streamed(ply, o, 3000, dir / "tiles"), std::invalid_argument);
 }
