@@ -6,8 +6,6 @@
 namespace lodforge {
 namespace {
 
-std::uint32_t canonical_bits(float x) { return std::bit_cast<std::uint32_t>(x == 0.0f ? 0.0f : x); }  // -0 == +0
-
 // The weld key of every vertex as a flat array of 32-bit words (`words` per vertex): position, then skin,
 // priority and the morph position deltas of its first wedge, when the mesh has them.
 std::vector<std::uint32_t> weld_keys(const Mesh& mesh, std::size_t& words) {
@@ -25,18 +23,18 @@ std::vector<std::uint32_t> weld_keys(const Mesh& mesh, std::size_t& words) {
   std::vector<std::uint32_t> keys(nv * words);
   for (std::size_t v = 0; v < nv; ++v) {
     std::uint32_t* k = &keys[v * words];
-    for (int i = 0; i < 3; ++i) *k++ = canonical_bits(mesh.positions[v][i]);
+    for (int i = 0; i < 3; ++i) *k++ = weld_bits(mesh.positions[v][i]);
     if (!mesh.skin.empty()) {
       for (std::size_t i = 0; i < kMaxInfluences; ++i) {
         *k++ = mesh.skin[v].joints[i];
-        *k++ = canonical_bits(mesh.skin[v].weights[i]);
+        *k++ = weld_bits(mesh.skin[v].weights[i]);
       }
     }
-    if (!mesh.priority.empty()) *k++ = canonical_bits(mesh.priority[v]);
+    if (!mesh.priority.empty()) *k++ = weld_bits(mesh.priority[v]);
     for (const MorphTarget& t : mesh.morph_targets) {
       if (t.position_deltas.empty()) continue;
       const std::uint32_t w = first_wedge[v];
-      for (int i = 0; i < 3; ++i) *k++ = w == kInvalidIndex ? 0u : canonical_bits(t.position_deltas[w][i]);
+      for (int i = 0; i < 3; ++i) *k++ = w == kInvalidIndex ? 0u : weld_bits(t.position_deltas[w][i]);
     }
   }
   return keys;

@@ -3,7 +3,13 @@
 
 #include "lodforge/core/mesh.hpp"
 
+#include <bit>
+#include <cstdint>
+
 namespace lodforge {
+
+// The bits of a coordinate the weld compares: those of the float, with −0 taken as +0.
+inline std::uint32_t weld_bits(float x) { return std::bit_cast<std::uint32_t>(x == 0.0f ? 0.0f : x); }
 
 // Merges vertices of `mesh` that are the same surface point: bit-equal position (−0 == +0), equal skin
 // influences, equal priority and equal morph position deltas on their wedges. Wedges are kept as they are

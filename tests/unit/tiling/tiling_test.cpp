@@ -533,12 +533,16 @@ TEST(TilingStream, ClosedMeshStaysCrackFreeTheSameOnAnyThreadCountAndFormat) {
 }
 
 TEST(TilingStream, WeldsRepeatedPositionsAndDropsWhatCollapses) {
-  // The torus with every vertex written twice (faces use the copies in alternation): welded back as loading
-  // whole does, so the cuts still weld and the mesh stays closed.
+  // The torus with every vertex written twice (faces use the copies in alternation; the second copy writes a
+  // zero coordinate as -0): welded back as loading whole does, so the cuts still weld and the mesh stays closed.
   const Mesh m = make_torus(60, 40);
   std::string text;
   for (int copy = 0; copy < 2; ++copy) {
-    for (const Vec3f& p : m.positions) text += "v " + std::to_string(p[0]) + " " + std::to_string(p[1]) + " " + std::to_string(p[2]) + "\n";
+    for (const Vec3f& p : m.positions) {
+      text += "v";
+      for (int a = 0; a < 3; ++a) text += " " + std::string(copy == 1 && p[a] == 0.0f ? "-0" : std::to_string(p[a]));
+      text += "\n";
+    }
   }
   const std::uint32_t n = static_cast<std::uint32_t>(m.vertex_count());
   for (std::size_t f = 0; f < m.face_count(); ++f) {
