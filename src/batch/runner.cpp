@@ -1322,8 +1322,7 @@ bool companion_file(const fs::path& p) {
   const std::string name = p.filename().string();
   if (!name.empty() && name[0] == '.') return true;
   if (p.extension() == ".json" && io::is_heightmap_path(p.stem())) return true;  // a height map's sidecar
-  std::string ext = p.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  const std::string ext = io::lower_extension(p);
   for (const char* e : {".bin", ".mtl", ".png", ".jpg", ".jpeg", ".ktx2", ".webp", ".dds", ".tga", ".basis"}) {
     if (ext == e) return true;
   }
@@ -1600,8 +1599,7 @@ std::string describe_target(const LodTarget& t) {
 // Files an output folder holds that a run writes: meshes, their buffers, materials and textures. Nothing else
 // there is ever judged stale, so pointing --output at a folder of other files cannot lose them.
 bool output_like(const fs::path& p) {
-  std::string ext = p.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  const std::string ext = io::lower_extension(p);
   for (const char* e :
        {".gltf", ".glb", ".bin", ".obj", ".mtl", ".ply", ".off", ".stl", ".png", ".jpg", ".jpeg", ".ktx2", ".webp"}) {
     if (ext == e) return true;

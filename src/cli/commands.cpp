@@ -271,25 +271,37 @@ void register_convert(CLI::App& app) {
   });
 }
 
+// The worker threads a --memory-limit plan counts on: --threads, or the machine's.
+unsigned plan_workers(const SimplifyOptions& opt) {
+  return opt.threads ? opt.threads : static_cast<unsigned>(tbb::this_task_arena::max_concurrency());
+}
+
+// Why these options cannot tile (so neither split a mesh under a memory limit nor stream it), or null.
+const char* why_not_tileable(const SimplifyOptions& opt) {
+  if (opt.engine != Engine::edge_collapse && opt.engine != Engine::multiple_choice) return "this engine cannot tile";
+  if (opt.verify_budget && (opt.max_error_rel >= 0.0 || opt.max_error_abs >= 0.0)) {
+    return "a verified error budget cannot tile (--no-verify can)";
+  }
+  return nullptr;
+}
+
 // `lodforge simplify --memory-limit` on a binary PLY or OBJ too large to load whole under the limit: streamed
 // out of core (tiling/stream.hpp). False where the file loads whole (the caller goes on as usual). Tiles are
 // written beside the output, in a folder removed afterwards.
 bool simplify_out_of_core(const std::string& in, const std::string& out, const SimplifyOptions& opt,
                           std::size_t memory_limit, const std::string& limit_text, bool evaluate) {
-  const unsigned workers = opt.threads ? opt.threads : static_cast<unsigned>(tbb::this_task_arena::max_concurrency());
-  const tiling::StreamPlan plan = tiling::plan_stream(in, opt, memory_limit, workers);
+  const tiling::StreamPlan plan = tiling::plan_stream(in, opt, memory_limit, plan_workers(opt));
   if (!plan.stream) return false;
-  const bool tileable = opt.engine == Engine::edge_collapse || opt.engine == Engine::multiple_choice;
-  const bool verified = opt.verify_budget && (opt.max_error_rel >= 0.0 || opt.max_error_abs >= 0.0);
-  if (!plan.fits || !tileable || verified) {
+  const char* not_tileable = why_not_tileable(opt);
+  if (!plan.fits || not_tileable != nullptr) {
     std::fprintf(stderr,
-                 "error: %s: %llu triangles do not fit in --memory-limit %s loaded whole (about %zu MiB), and %s\n",
+                 "error: %s: %llu triangles do not fit in --memory-limit %s loaded whole (about %zu MiB), and %s%s\n",
                  in.c_str(), static_cast<unsigned long long>(plan.counts.triangles), limit_text.c_str(),
                  plan.whole_bytes >> 20,
-                 !tileable  ? "this engine cannot tile, so cannot stream either"
-                 : verified ? "a verified error budget cannot stream (--no-verify can)"
-                            : "streamed out of core it needs more too (the program, the vertex positions and "
-                              "tiles of at least 1000 triangles)");
+                 not_tileable != nullptr ? not_tileable
+                                         : "streamed out of core it needs more too (the program, the vertex "
+                                           "positions and tiles of at least 1000 triangles)",
+                 not_tileable != nullptr ? ", so it cannot stream either" : "");
     set_exit_code(2);
     return true;
   }
@@ -308,11 +320,10 @@ bool simplify_out_of_core(const std::string& in, const std::string& out, const S
       tiling::simplify_streamed(in, opt, plan.tile_triangles, scratch, memory_limit, plan.counts.vertices);
   for (const std::string& w : run.warnings) std::printf("warning: %s\n", w.c_str());
   const SimplifyResult& r = run.result;
-  const double diagonal = compute_bounds(r.mesh).diagonal();
   std::printf("mesh 0: %zu -> %zu triangles (%zu vertices read, %zu tiles on disk), QEM error %.4f%% of diagonal (a "
               "ranking, not a bound), stopped: %s, %.1f ms\n",
               r.triangles_before, r.triangles_after, run.input_vertices, run.tiles,
-              diagonal > 0.0 ? 100.0 * r.qem_error_rel : 0.0, stop_reason_name(r.stop_reason),
+              100.0 * r.qem_error_rel, stop_reason_name(r.stop_reason),
               r.timings.setup_ms + r.timings.initial_costs_ms + r.timings.collapse_ms + r.timings.output_ms);
   std::printf("  tiled: %zu pass(es), %zu tile run(s)\n", r.tiling_passes, r.tile_runs);
   if (evaluate) std::printf("  not measured: --eval needs the whole input in memory\n");
@@ -472,19 +483,16 @@ void register_simplify(CLI::App& app) {
       // Every mesh is planned before any is simplified: a mesh that cannot fit fails the run before the work.
       std::vector<tiling::MemoryPlan> plans(asset.meshes.size());
       if (memory_limit > 0) {
-        const unsigned workers =
-            opt.threads ? opt.threads : static_cast<unsigned>(tbb::this_task_arena::max_concurrency());
         for (std::size_t i = 0; i < asset.meshes.size(); ++i) {
-          plans[i] = tiling::plan_memory(asset.meshes[i], opt, memory_limit, workers);
+          plans[i] = tiling::plan_memory(asset.meshes[i], opt, memory_limit, plan_workers(opt));
           if (plans[i].fits) continue;
-          const bool tileable = opt.engine == Engine::edge_collapse || opt.engine == Engine::multiple_choice;
+          const char* not_tileable = why_not_tileable(opt);
           std::fprintf(stderr,
-                       "error: %s: mesh %zu (%zu triangles) does not fit in --memory-limit %s: %s\n",
+                       "error: %s: mesh %zu (%zu triangles) does not fit in --memory-limit %s: %s%s\n",
                        a->in.c_str(), i, asset.meshes[i].triangle_count(), a->memory_limit.c_str(),
-                       !tileable ? "one engine run needs more and this engine cannot tile"
-                       : opt.verify_budget && (opt.max_error_rel >= 0.0 || opt.max_error_abs >= 0.0)
-                           ? "one engine run needs more and a verified error budget cannot tile (--no-verify can)"
-                           : "the mesh held in memory with the tiled path's arrays needs more");
+                       not_tileable != nullptr ? "one engine run needs more and " : "",
+                       not_tileable != nullptr ? not_tileable
+                                               : "the mesh held in memory with the tiled path's arrays needs more");
           set_exit_code(2);
           return;
         }

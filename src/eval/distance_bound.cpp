@@ -350,7 +350,16 @@ DistanceBound bound_triangles(std::span<const Vec3d> positions, std::span<const 
   // Nodes still open from earlier rounds (with their bounds), when the query allowance let only the worst split.
   std::vector<Node> waiting;
   std::vector<Bound> waiting_bounds;
-  std::vector<std::uint32_t> over;  // list_over: triangles found over give_up_above
+  std::vector<std::uint32_t> over;  // triangles found over give_up_above
+  // Gives up with the triangles found over the threshold, each named once in ascending order.
+  auto give_up = [&] {
+    std::sort(over.begin(), over.end());
+    over.erase(std::unique(over.begin(), over.end()), over.end());
+    out.over = std::move(over);
+    out.gave_up = true;
+    out.upper = std::numeric_limits<double>::infinity();
+    return out;
+  };
   for (int round = 0;; ++round) {
     const std::size_t fresh = active.size();
     bounds.resize(fresh);
@@ -369,13 +378,9 @@ DistanceBound bound_triangles(std::span<const Vec3d> positions, std::span<const 
     out.rounds = round + 1;
     if (out.lower > options.give_up_above && !options.list_over) {
       for (std::size_t i = 0; i < fresh; ++i) {
-        if (bounds[i].lower > options.give_up_above) out.over.push_back(active[i].source);
+        if (bounds[i].lower > options.give_up_above) over.push_back(active[i].source);
       }
-      std::sort(out.over.begin(), out.over.end());
-      out.over.erase(std::unique(out.over.begin(), out.over.end()), out.over.end());
-      out.gave_up = true;
-      out.upper = std::numeric_limits<double>::infinity();
-      return out;
+      return give_up();
     }
     double enough = std::max((1.0 + options.tolerance) * out.lower, options.good_enough);
     // Listing, the largest distance may be one set aside over the threshold: a part settles only below it.
@@ -398,14 +403,7 @@ DistanceBound bound_triangles(std::span<const Vec3d> positions, std::span<const 
     if (split.empty() || round + 1 >= options.max_rounds || affordable == 0) {
       out.converged = split.empty();
       out.upper = std::max({settled, open, out.lower});
-      if (!over.empty()) {
-        std::sort(over.begin(), over.end());
-        over.erase(std::unique(over.begin(), over.end()), over.end());
-        out.over = std::move(over);
-        out.gave_up = true;
-        out.upper = std::numeric_limits<double>::infinity();
-      }
-      return out;
+      return over.empty() ? out : give_up();
     }
     if (split.size() > affordable) {
       // Not all can split: the worst do (ties by position, so the choice is the same on any thread count), the

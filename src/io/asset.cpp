@@ -9,8 +9,7 @@
 namespace lodforge::io {
 
 Format format_from_path(const std::filesystem::path& path) {
-  std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  const std::string ext = lower_extension(path);
   if (ext == ".gltf") return Format::gltf;
   if (ext == ".glb") return Format::glb;
   if (ext == ".obj") return Format::obj;

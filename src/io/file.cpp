@@ -2,7 +2,9 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -60,6 +62,12 @@ void write_file_atomic(const std::filesystem::path& path, std::string_view bytes
     std::filesystem::remove(tmp, ec);
     throw IoError(path, "cannot rename the temporary file into place: " + why);
   }
+}
+
+std::string lower_extension(const std::filesystem::path& path) {
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext;
 }
 
 std::string percent_decode(std::string_view s) {

@@ -1477,8 +1477,7 @@ std::vector<std::vector<Matrix4>> mesh_world_transforms(const tinygltf::Model& m
 Asset read_gltf(const std::filesystem::path& path, const LoadOptions& options) {
   const std::string bytes = read_file(path);
   if (bytes.empty()) throw IoError(path, "file is empty");
-  std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  const std::string ext = lower_extension(path);
   const bool glb = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
   if (!glb && ext == ".glb") {
     throw IoError(path, "not a GLB file: wrong magic (expected 'glTF' in the first 4 bytes)");

@@ -36,13 +36,6 @@ namespace {
 // samples, more than the rest of the pipeline could hold as meshes anyway).
 constexpr std::size_t kMaxSamples = std::size_t{1} << 32;
 
-std::string lower_extension(const std::filesystem::path& path) {
-  std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return ext;
-}
-
 double positive_number(const nlohmann::json& j, const char* key, const std::filesystem::path& sidecar) {
   if (!j.is_number() || !std::isfinite(j.get<double>()) || j.get<double>() <= 0.0) {
     throw IoError(sidecar, std::string{"\""} + key + "\" must be a positive number");

@@ -540,30 +540,30 @@ void stream_ply(const std::filesystem::path& path, const StreamSinks& sinks) {
   std::vector<std::uint32_t> face;
   for (const Element& e : h.elements) {
     if (e.name == "vertex" && !have_vertices) {
-      int axis[3] = {-1, -1, -1};
+      std::vector<int> axis(e.properties.size(), -1);  // per property: the coordinate it holds, or -1
+      bool have[3] = {false, false, false};
       for (std::size_t k = 0; k < e.properties.size(); ++k) {
         const Property& p = e.properties[k];
         const Role role = role_named(p.name);
         if (p.list && role != Role::skip) ctx.fail("vertex property '" + p.name + "' is declared as a list where a scalar is expected");
         if (role == Role::x || role == Role::y || role == Role::z) {
-          axis[static_cast<int>(role) - static_cast<int>(Role::x)] = static_cast<int>(k);
+          axis[k] = static_cast<int>(role) - static_cast<int>(Role::x);
+          have[axis[k]] = true;
         } else if (role != Role::skip) {
-          ctx.fail("the file has vertex property '" + p.name + "', and reading it out of core keeps positions and "
-                   "faces only (raise --memory-limit so that it loads whole)");
+          refuse_out_of_core(ctx, "vertex property '" + p.name + "'");
         }
       }
-      if (axis[0] < 0 || axis[1] < 0 || axis[2] < 0) ctx.fail("the vertex element has no x, y and z properties");
+      if (!have[0] || !have[1] || !have[2]) ctx.fail("the vertex element has no x, y and z properties");
       parse::check_declared_count(ctx, "vertices", e.count, 1, src.remaining(), {});
       for (std::uint64_t i = 0; i < e.count; ++i) {
         src.at(&e.name, i);
         Vec3f p{};
         for (std::size_t k = 0; k < e.properties.size(); ++k) {
           const Property& q = e.properties[k];
-          const int a = static_cast<int>(k) == axis[0] ? 0 : static_cast<int>(k) == axis[1] ? 1 : static_cast<int>(k) == axis[2] ? 2 : -1;
-          if (a < 0) {
+          if (axis[k] < 0) {
             skip_property(src, q);
           } else {
-            p[a] = static_cast<float>(src.real(q.type));
+            p[axis[k]] = static_cast<float>(src.real(q.type));
           }
         }
         parse::check_finite_position(ctx, p, i);

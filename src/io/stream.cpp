@@ -8,6 +8,7 @@
 #include <map>
 
 #include "lodforge/io/asset.hpp"
+#include "lodforge/io/file.hpp"
 #include "stream_internal.hpp"
 #include "text_parse.hpp"
 
@@ -16,19 +17,6 @@ namespace {
 
 using parse::ErrorContext;
 
-constexpr std::size_t kBufferBytes = kStreamBufferBytes;
-
-std::string lower_extension(const std::filesystem::path& path) {
-  std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return ext;
-}
-
-// Refuses what streaming would drop.
-[[noreturn]] void refuse(const ErrorContext& ctx, const std::string& what) {
-  ctx.fail("the file has " + what + ", and reading it out of core keeps positions and faces only (raise "
-           "--memory-limit so that it loads whole)");
-}
 
 void stream_obj(const std::filesystem::path& path, const StreamSinks& sinks, StreamResult& result) {
   FileReader reader(path);
@@ -48,7 +36,7 @@ void stream_obj(const std::filesystem::path& path, const StreamSinks& sinks, Str
       std::array<float, 7> x{};
       const int n = parse::parse_reals(ctx, rest, x.data(), 7, "a 'v' statement");
       if (n < 3 || n == 5) ctx.fail("'v' statement has " + std::to_string(n) + " values (x y z or x y z w expected)");
-      if (n >= 6) refuse(ctx, "vertex colours");
+      if (n >= 6) refuse_out_of_core(ctx, "vertex colours");
       const Vec3f p{{x[0], x[1], x[2]}};
       parse::check_finite_position(ctx, p, vertices);
       if (vertices >= parse::kMaxIndexableElements) ctx.fail("too many vertices for 32-bit indices");
@@ -74,13 +62,13 @@ void stream_obj(const std::filesystem::path& path, const StreamSinks& sinks, Str
         result.material = material;
         any_face = true;
       } else if (material != result.material) {
-        refuse(ctx, "faces in two materials (" + parse::quote(result.material) + ", " + parse::quote(material) + ")");
+        refuse_out_of_core(ctx, "faces in two materials (" + parse::quote(result.material) + ", " + parse::quote(material) + ")");
       }
       sinks.face(face);
     } else if (keyword == "vt") {
-      refuse(ctx, "texture coordinates ('vt')");
+      refuse_out_of_core(ctx, "texture coordinates ('vt')");
     } else if (keyword == "vn") {
-      refuse(ctx, "normals ('vn')");
+      refuse_out_of_core(ctx, "normals ('vn')");
     } else if (keyword == "usemtl") {
       material = std::string(parse::trim(rest));
     } else if (keyword == "mtllib") {
@@ -120,6 +108,11 @@ StreamCounts obj_counts(const std::filesystem::path& path) {
 
 }  // namespace
 
+void refuse_out_of_core(const parse::ErrorContext& ctx, const std::string& what) {
+  ctx.fail("the file has " + what + ", and reading it out of core keeps positions and faces only (raise "
+           "--memory-limit so that it loads whole)");
+}
+
 FileReader::FileReader(const std::filesystem::path& path) : path_(path) {
   file_ = std::fopen(path.c_str(), "rb");
   if (file_ == nullptr) throw IoError(path, std::string("cannot open: ") + std::strerror(errno));
@@ -129,7 +122,7 @@ FileReader::FileReader(const std::filesystem::path& path) : path_(path) {
     std::fclose(file_);
     throw IoError(path, "cannot read its size: " + ec.message());
   }
-  buffer_.resize(kBufferBytes);
+  buffer_.resize(kStreamBufferBytes);
 }
 
 FileReader::~FileReader() {

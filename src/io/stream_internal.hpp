@@ -39,6 +39,13 @@ class FileReader {
   std::size_t begin_ = 0, end_ = 0;
 };
 
+namespace parse {
+struct ErrorContext;
+}
+
+// Fails naming `what` the file has that reading it out of core would drop.
+[[noreturn]] void refuse_out_of_core(const parse::ErrorContext& ctx, const std::string& what);
+
 // The binary PLY body, streamed (ply.cpp).
 void stream_ply(const std::filesystem::path& path, const StreamSinks& sinks);
 StreamCounts ply_counts(const std::filesystem::path& path);

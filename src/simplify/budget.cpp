@@ -85,7 +85,9 @@ struct Measurement {
   bool certified = false;  // output → reference held by the certified bound (else by its sampled maximum)
   double bound = 0;        // output → reference, an upper bound (+inf when not computed or over the budget)
   double sampled = 0;      // output → reference, the largest distance measured
-  double reverse = 0;      // reference → output, sampled (+inf when a sample exceeded the budget)
+  // reference → output, the largest distance measured by samples or the bound's lower end (+inf when a sample
+  // exceeded the budget)
+  double reverse = 0;
   double reverse_bound = 0;  // reference → output, an upper bound (+inf when not computed or over the budget)
   std::vector<char> on_target;          // per output triangle: a reference triangle bit for bit (distance 0)
   std::vector<char> reference_on_output;  // per reference triangle: an output triangle bit for bit

@@ -196,12 +196,8 @@ StreamedRun simplify_streamed(const std::filesystem::path& path, const SimplifyO
   // the surface is denser; the batches below keep the tiles in memory at once within the plan). Cells of half
   // that made the 16.8M-triangle terrain's LOD 1.39x the RMS distance at 1% (more locked cut vertices in the
   // first pass), for 0.7x the time.
-  const double per_tile = static_cast<double>(std::max<std::size_t>(tile_triangles, 1)) /
-                          static_cast<double>(std::max<std::uint64_t>(triangles, 1));
-  double cell = std::sqrt(area * per_tile);
   const double diagonal = box.empty() ? 0.0 : box.diagonal();
-  if (!(cell > 0.0) || !std::isfinite(cell)) cell = diagonal * std::cbrt(per_tile);
-  if (std::isfinite(diagonal)) cell = std::max(cell, diagonal / static_cast<double>(detail::kCellMax / 2));
+  const double cell = detail::cell_size(area, triangles, tile_triangles, diagonal);
   const Vec3d origin = box.empty() ? Vec3d{} : box.min;
 
   // Second pass: each triangle to the file of its centroid's cell; which vertices more than one tile uses.
@@ -253,22 +249,10 @@ StreamedRun simplify_streamed(const std::filesystem::path& path, const SimplifyO
   std::iota(order.begin(), order.end(), 0u);
   std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return tiles[a].key < tiles[b].key; });
   const std::size_t target = detail::global_target(options, triangles);
-  const std::size_t oversampled = target * kOversample;
-  const std::size_t pass_target = oversampled < kept / 2 ? oversampled : target;
-  SimplifyOptions base = options;
-  base.tiling = TilingMode::off;
-  base.symmetry_weight = 0.0;
-  base.vertex_mirror = nullptr;
-  base.target_ratio = 1.0;
-  base.locked_vertices.clear();
-  if (options.max_error_rel >= 0.0) {  // relative to the whole mesh, not to a tile
-    const double rel = options.max_error_rel * diagonal;
-    base.max_error_abs = base.max_error_abs >= 0.0 ? std::min(base.max_error_abs, rel) : rel;
-    base.max_error_rel = -1.0;
-  }
-  const unsigned concurrency =
-      options.threads ? options.threads : static_cast<unsigned>(tbb::this_task_arena::max_concurrency());
-  base.threads = tiles.size() >= 2 * std::size_t{concurrency} ? 1 : options.threads;
+  const std::size_t pass_target = detail::first_pass_target(target, kept);
+  SimplifyOptions base = detail::tile_base_options(options, diagonal);
+  base.threads = detail::tile_threads(options, tiles.size());
+  const unsigned concurrency = detail::concurrency(options);
   tbb::task_arena arena(options.threads ? static_cast<int>(options.threads) : tbb::task_arena::automatic);
   std::vector<TileRun> runs(tiles.size());
   // Tiles run in batches of at most `concurrency` x tile_triangles (a larger tile alone), so that the tiles in
@@ -289,8 +273,7 @@ StreamedRun simplify_streamed(const std::filesystem::path& path, const SimplifyO
         std::error_code ec;
         std::filesystem::remove(file, ec);
         SimplifyOptions o = base;
-        o.target_triangles =
-            std::max<std::size_t>(1, (pass_target * tile.triangles + kept / 2) / std::max<std::size_t>(kept, 1));
+        o.target_triangles = detail::tile_share(pass_target, tile.triangles, kept);
         runs[i] = run_tile(ids, positions, owner, o, i);
       }
     });
@@ -299,12 +282,7 @@ StreamedRun simplify_streamed(const std::filesystem::path& path, const SimplifyO
   }
 
   SimplifyResult first;
-  for (const TileRun& r : runs) {
-    first.qem_error_abs = std::max(first.qem_error_abs, r.result.qem_error_abs);
-    first.collapses += r.result.collapses;
-    first.rounds += r.result.rounds;
-    first.vetoes += r.result.vetoes;
-  }
+  for (const TileRun& r : runs) detail::add_stats(first, r.result);
   // The whole-file arrays go before the stitch and the finishing run need their memory.
   const std::size_t vertex_count = positions.size();
   std::vector<Vec3f>().swap(positions);
@@ -333,11 +311,8 @@ StreamedRun simplify_streamed(const std::filesystem::path& path, const SimplifyO
   }
   SimplifyResult r = simplify_maybe_tiled(stitched, finish);
   r.triangles_before = triangles;
-  r.qem_error_abs = std::max(r.qem_error_abs, first.qem_error_abs);
+  detail::add_stats(r, first);
   r.qem_error_rel = diagonal > 0.0 ? r.qem_error_abs / diagonal : 0.0;
-  r.collapses += first.collapses;
-  r.rounds += first.rounds;
-  r.vetoes += first.vetoes;
   r.tiling_passes += 1;
   r.tile_runs += tiles.size();
   run.result = std::move(r);

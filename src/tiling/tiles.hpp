@@ -31,6 +31,27 @@ std::size_t global_target(const SimplifyOptions& o, std::size_t n);
 // applies() without the size: whether these options may tile a mesh at all.
 bool may_tile(const SimplifyOptions& options);
 
+// The cell side that cuts about `tile_triangles` of a surface of `area` made of `triangles` triangles
+// (s^2 = area per triangle x triangles per tile), never so small that a cell index overflows its bits.
+double cell_size(double area, std::size_t triangles, std::size_t tile_triangles, double diagonal);
+
+// The options every tile runs with: no tiling, no mirror (a tile does not hold both sides), no ratio (each
+// tile gets a count), no caller locks (each tile gets its own), a relative QEM cap made absolute on the
+// whole mesh's diagonal.
+SimplifyOptions tile_base_options(const SimplifyOptions& options, double diagonal);
+// The threads these options allow (their `threads`, or the arena's).
+unsigned concurrency(const SimplifyOptions& options);
+// Each tile's engine threads: tiles are the parallel unit, and an engine's own threads only help when there
+// are fewer tiles than twice the cores.
+unsigned tile_threads(const SimplifyOptions& options, std::size_t tiles);
+// The first pass's target: kOversample x the global target where that is below half of the `n` triangles,
+// so that the final untiled run spends the last collapses where the whole mesh's error is least.
+std::size_t first_pass_target(std::size_t target, std::size_t n);
+// A tile's share of `pass_target` by its `tile_triangles` of the pass's `pass_triangles`, rounded to nearest.
+std::size_t tile_share(std::size_t pass_target, std::size_t tile_triangles, std::size_t pass_triangles);
+// Folds one run's statistics into a total (largest error and seam stage, summed counts).
+void add_stats(SimplifyResult& total, const SimplifyResult& r);
+
 // One tile's run: its output, the output vertex of each tracked (locked) sub-mesh vertex with its source vertex.
 struct TileRun {
   SimplifyResult result;

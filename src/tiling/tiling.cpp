@@ -29,7 +29,6 @@ using detail::track_locked;
 
 namespace {
 
-
 bool same_bits(const Vec3f& a, const Vec3f& b) {
   return std::memcmp(a.v.data(), b.v.data(), sizeof(float) * 3) == 0;
 }
@@ -116,13 +115,10 @@ TileRun run_tile(const Mesh& mesh, const TileCut& c, std::size_t t, const std::v
   std::vector<std::uint32_t> vertices;
   const Mesh sub = extract(mesh, c.tiles[t], vertices);
   SimplifyOptions o = tile_options;
-  o.locked_vertices.clear();
   for (std::uint32_t i = 0; i < vertices.size(); ++i) {
     if (c.border[vertices[i]] || user_locked[vertices[i]]) o.locked_vertices.push_back(i);
   }
-  // The tile's share of the global target, rounded to nearest.
-  const std::size_t n = c.tiles[t].size();
-  o.target_triangles = std::max<std::size_t>(1, (global_target_triangles * n + pass_triangles / 2) / pass_triangles);
+  o.target_triangles = detail::tile_share(global_target_triangles, c.tiles[t].size(), pass_triangles);
   TileRun run;
   run.result = simplify(sub, o);
   track_locked(run, sub, o.locked_vertices, vertices, t);
@@ -144,6 +140,56 @@ bool may_tile(const SimplifyOptions& options) {
   // A volume budget is a fraction of the whole mesh's volume: a tile (an open piece) has none of its own.
   if (options.conservative != Conservative::none && options.max_volume_growth >= 0.0) return false;
   return !options.verifies_budget();
+}
+
+double cell_size(double area, std::size_t triangles, std::size_t tile_triangles, double diagonal) {
+  const double per_tile = static_cast<double>(std::max<std::size_t>(tile_triangles, 1)) /
+                          static_cast<double>(std::max<std::size_t>(triangles, 1));
+  double cell = std::sqrt(area * per_tile);
+  if (!(cell > 0.0) || !std::isfinite(cell)) cell = diagonal * std::cbrt(per_tile);
+  if (std::isfinite(diagonal)) cell = std::max(cell, diagonal / static_cast<double>(kCellMax / 2));
+  return cell;
+}
+
+SimplifyOptions tile_base_options(const SimplifyOptions& options, double diagonal) {
+  SimplifyOptions base = options;
+  base.tiling = TilingMode::off;
+  base.symmetry_weight = 0.0;
+  base.vertex_mirror = nullptr;
+  base.target_ratio = 1.0;
+  base.locked_vertices.clear();
+  if (options.max_error_rel >= 0.0) {
+    const double rel = options.max_error_rel * diagonal;
+    base.max_error_abs = base.max_error_abs >= 0.0 ? std::min(base.max_error_abs, rel) : rel;
+    base.max_error_rel = -1.0;
+  }
+  return base;
+}
+
+unsigned concurrency(const SimplifyOptions& options) {
+  return options.threads ? options.threads : static_cast<unsigned>(tbb::this_task_arena::max_concurrency());
+}
+
+unsigned tile_threads(const SimplifyOptions& options, std::size_t tiles) {
+  return tiles >= 2 * std::size_t{concurrency(options)} ? 1 : options.threads;
+}
+
+std::size_t first_pass_target(std::size_t target, std::size_t n) {
+  const std::size_t oversampled = target * kOversample;
+  return oversampled < n / 2 ? oversampled : target;
+}
+
+std::size_t tile_share(std::size_t pass_target, std::size_t tile_triangles, std::size_t pass_triangles) {
+  const std::size_t total = std::max<std::size_t>(pass_triangles, 1);
+  return std::max<std::size_t>(1, (pass_target * tile_triangles + total / 2) / total);
+}
+
+void add_stats(SimplifyResult& total, const SimplifyResult& r) {
+  total.qem_error_abs = std::max(total.qem_error_abs, r.qem_error_abs);
+  total.collapses += r.collapses;
+  total.rounds += r.rounds;
+  total.vetoes += r.vetoes;
+  total.seam_stage = std::max(total.seam_stage, r.seam_stage);
 }
 
 void track_locked(TileRun& run, const Mesh& sub, const std::vector<std::uint32_t>& locked,
@@ -254,10 +300,6 @@ double pass_shift(int pass) {
   return kShifts[pass % 4];
 }
 
-namespace {
-
-}  // namespace
-
 bool applies(const Mesh& triangles, const SimplifyOptions& options) {
   if (!may_tile(options)) return false;
   return options.tiling != TilingMode::automatic || triangles.face_count() >= kAutoThresholdTriangles;
@@ -281,13 +323,7 @@ TileCut cut(const Mesh& triangles, std::size_t tile_triangles, double shift) {
     const Vec3d e2 = to_double(triangles.positions[triangles.corner_vertex(k + 2)]) - a;
     area += 0.5 * length(cross(e1, e2));
   }
-  const double per_tile = static_cast<double>(std::max<std::size_t>(tile_triangles, 1)) / static_cast<double>(n);
-  // A cell of side s cuts about s^2 of a surface: s^2 = area per triangle x triangles per tile.
-  double cell = std::sqrt(area * per_tile);
-  const double diagonal = box.diagonal();
-  if (!(cell > 0.0) || !std::isfinite(cell)) cell = diagonal * std::cbrt(per_tile);
-  // Never so small that the cell index overflows its bits.
-  if (std::isfinite(diagonal)) cell = std::max(cell, diagonal / static_cast<double>(detail::kCellMax / 2));
+  const double cell = detail::cell_size(area, n, tile_triangles, box.diagonal());
   c.cell = cell;
   std::vector<std::uint64_t> key(n);
   const bool one_tile = !(cell > 0.0) || !std::isfinite(cell);
@@ -417,7 +453,6 @@ MemoryPlan plan_memory(const Mesh& mesh, const SimplifyOptions& options, std::si
 }
 
 SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& options) {
-  const auto t_start = std::chrono::steady_clock::now();
   const std::size_t before = triangles.face_count();
   const std::size_t target = global_target(options, before);
   const std::size_t tile_triangles = options.tile_triangles;
@@ -432,19 +467,7 @@ SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& opti
     locked[v] = 1;
   }
 
-  SimplifyOptions base = options;
-  base.tiling = TilingMode::off;
-  base.symmetry_weight = 0.0;  // a tile does not hold both sides of the mirror
-  base.vertex_mirror = nullptr;
-  base.target_ratio = 1.0;
-  // A relative QEM cap is relative to the whole mesh, not to a tile.
-  if (options.max_error_rel >= 0.0) {
-    const double rel = options.max_error_rel * diagonal;
-    base.max_error_abs = base.max_error_abs >= 0.0 ? std::min(base.max_error_abs, rel) : rel;
-    base.max_error_rel = -1.0;
-  }
-  const unsigned concurrency =
-      options.threads ? options.threads : static_cast<unsigned>(tbb::this_task_arena::max_concurrency());
+  const SimplifyOptions base = detail::tile_base_options(options, diagonal);
   tbb::task_arena arena(options.threads ? static_cast<int>(options.threads) : tbb::task_arena::automatic);
 
   SimplifyResult total;
@@ -452,23 +475,15 @@ SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& opti
   Mesh current;
   const Mesh* mesh = &triangles;
   double collapse_ms = 0;
-  auto add_stats = [&](const SimplifyResult& r) {
-    total.qem_error_abs = std::max(total.qem_error_abs, r.qem_error_abs);
-    total.collapses += r.collapses;
-    total.rounds += r.rounds;
-    total.vetoes += r.vetoes;
-    total.seam_stage = std::max(total.seam_stage, r.seam_stage);
-  };
   bool stopped = false, finished = false, over_budget = false;
   for (int pass = 0; pass < kMaxPasses && !finished; ++pass) {
     const std::size_t n = mesh->face_count();
     if (n <= target) break;
     const auto t0 = std::chrono::steady_clock::now();
-    // The first pass stops each tile at its share of kOversample x the target: the final untiled run then
-    // spends the last collapses where the whole mesh's error is least (tiles cut to a count alone would get
-    // the same density everywhere). Later passes go to the target itself.
+    // The first pass oversamples (tiles cut to a count alone would get the same density everywhere); later
+    // passes go to the target itself.
     const std::size_t oversampled = target * kOversample;
-    const std::size_t pass_target = pass == 0 && oversampled < n / 2 ? oversampled : target;
+    const std::size_t pass_target = pass == 0 ? detail::first_pass_target(target, n) : target;
     const std::size_t untiled_limit =
         std::max(tile_triangles, std::min(oversampled + oversampled / 2, kFinalTiles * tile_triangles));
     TileCut c;
@@ -477,7 +492,6 @@ SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& opti
       // The mesh fits in one tile (or this is the last pass): one untiled run finishes it.
       SimplifyOptions o = base;
       o.target_triangles = target;
-      o.locked_vertices.clear();
       for (std::uint32_t v = 0; v < locked.size(); ++v) {
         if (locked[v]) o.locked_vertices.push_back(v);
       }
@@ -485,7 +499,7 @@ SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& opti
       ++total.tiling_passes;
       ++total.tile_runs;
       collapse_ms += collapse::elapsed_ms(t0);
-      add_stats(r);
+      detail::add_stats(total, r);
       total.floors = r.floors;
       stopped = r.stop_reason == StopReason::stopped;
       over_budget = over_budget || r.stop_reason == StopReason::error_budget;
@@ -495,8 +509,7 @@ SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& opti
       break;
     }
     SimplifyOptions tile_options = base;
-    // Tiles are the parallel unit; an engine's own threads only help when there are fewer tiles than cores.
-    tile_options.threads = c.tiles.size() >= 2 * std::size_t{concurrency} ? 1 : options.threads;
+    tile_options.threads = detail::tile_threads(options, c.tiles.size());
     std::vector<TileRun> runs(c.tiles.size());
     const double cut_ms = collapse::elapsed_ms(t0);
     const auto t1 = std::chrono::steady_clock::now();
@@ -514,7 +527,7 @@ SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& opti
     const auto t2 = std::chrono::steady_clock::now();
     total.floors.clear();
     for (const TileRun& r : runs) {
-      add_stats(r.result);
+      detail::add_stats(total, r.result);
       stopped = stopped || r.result.stop_reason == StopReason::stopped;
       over_budget = over_budget || r.result.stop_reason == StopReason::error_budget;
     }
@@ -537,7 +550,6 @@ SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& opti
                                                       : StopReason::no_valid_collapse;
   if (total.stop_reason == StopReason::target_reached) total.floors.clear();
   total.timings.output_ms = 0;
-  (void)t_start;
   return total;
 }
 

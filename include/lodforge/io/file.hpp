@@ -32,4 +32,7 @@ std::filesystem::path resolve_inside(const std::filesystem::path& asset, const s
 
 std::string percent_decode(std::string_view s);
 
+// The path's extension ("" or ".xyz") in lower case, as the readers and the batch compare extensions.
+std::string lower_extension(const std::filesystem::path& path);
+
 }  // namespace lodforge::io
