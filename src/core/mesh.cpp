@@ -1,7 +1,12 @@
 #include "lodforge/core/mesh.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <cassert>
+#include <optional>
 
 namespace lodforge {
 
@@ -84,10 +89,11 @@ Mesh triangulated(const Mesh& mesh, std::vector<std::uint32_t>* triangle_face) {
   return out;
 }
 
-std::vector<std::uint32_t> repeated_faces(const Mesh& mesh) {
-  // Each face's corner vertices from its smallest one: equal sequences (and materials) are repeats. Faces go
-  // into an open-addressing table by the hash of that sequence, in ascending order, so a repeat is found when
-  // its earlier twin is already there (a sort of all faces cost twice as much: 10 ms on 100k faces).
+std::vector<std::uint32_t> repeated_faces(const Mesh& mesh, unsigned threads) {
+  // Each face's corner vertices from its smallest one: equal sequences (and materials) are repeats. Faces are
+  // hashed by that sequence in parallel, bucketed by the hash's top bits into partitions small enough for
+  // their open-addressing tables to stay in cache, and each partition inserts its faces in ascending order, so
+  // a repeat is found when its earlier twin is already there (equal faces hash alike: same partition).
   auto canonical_start = [&](std::uint32_t f) {
     const std::uint32_t begin = mesh.face_offsets[f], k = mesh.face_size(f);
     std::uint32_t s = 0;
@@ -97,8 +103,8 @@ std::vector<std::uint32_t> repeated_faces(const Mesh& mesh) {
     return s;
   };
   auto material = [&](std::uint32_t f) { return f < mesh.face_material.size() ? mesh.face_material[f] : 0u; };
-  std::vector<std::uint32_t> corners;  // simple() on large faces: sorted, since pairwise tests are quadratic
-  auto simple = [&](std::uint32_t f) {
+  // Whether no corner repeats (large faces sorted: pairwise tests are quadratic).
+  auto simple = [&](std::uint32_t f, std::vector<std::uint32_t>& corners) {
     const std::uint32_t begin = mesh.face_offsets[f], k = mesh.face_size(f);
     if (k > 32) {
       corners.resize(k);
@@ -124,32 +130,85 @@ std::vector<std::uint32_t> repeated_faces(const Mesh& mesh) {
     return true;
   };
   const std::size_t faces = mesh.face_count();
-  std::size_t capacity = 16;
-  while (capacity < 2 * faces) capacity *= 2;
-  std::vector<std::uint32_t> slot_face(capacity, kInvalidIndex);
-  std::vector<std::uint64_t> slot_hash(capacity);
-  std::vector<std::uint32_t> repeats;
-  for (std::uint32_t f = 0; f < faces; ++f) {
-    const std::uint32_t k = mesh.face_size(f);
-    if (k < 3 || !face_indices_in_range(mesh, f) || !simple(f)) continue;
-    const std::uint32_t begin = mesh.face_offsets[f], s = canonical_start(f);
-    std::uint64_t h = 0x9E3779B97F4A7C15ull ^ (std::uint64_t{k} << 32 | material(f));
-    for (std::uint32_t i = 0; i < k; ++i) {
-      h = (h ^ mesh.corner_vertex(begin + (s + i) % k)) * 0x100000001B3ull;
-      h ^= h >> 29;
+  constexpr std::size_t kPartitionFaces = std::size_t{1} << 14;  // a 32k-slot table: 384 KB
+  int bits = 0;
+  while (bits < 12 && (faces >> bits) > kPartitionFaces) ++bits;
+  const std::size_t partitions = std::size_t{1} << bits;
+  constexpr std::uint32_t kSkipped = ~std::uint32_t{0};  // partition of a face that cannot repeat another
+  std::vector<std::uint64_t> hash(faces);
+  std::vector<std::uint32_t> partition(faces);
+  const bool parallel = threads != 1 && faces >= 2 * kPartitionFaces;
+  std::optional<tbb::task_arena> arena;
+  if (parallel) arena.emplace(threads == 0 ? tbb::task_arena::automatic : static_cast<int>(threads));
+  auto for_ranges = [&](std::size_t n, std::size_t grain, auto&& body) {
+    if (!parallel) return body(std::size_t{0}, n);
+    arena->execute([&] {
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain),
+                        [&](const tbb::blocked_range<std::size_t>& r) { body(r.begin(), r.end()); });
+    });
+  };
+  for_ranges(faces, 4096, [&](std::size_t b, std::size_t e) {
+    std::vector<std::uint32_t> corners;
+    for (std::size_t i = b; i < e; ++i) {
+      const auto f = static_cast<std::uint32_t>(i);
+      const std::uint32_t k = mesh.face_size(f);
+      if (k < 3 || !face_indices_in_range(mesh, f) || !simple(f, corners)) {
+        partition[f] = kSkipped;
+        continue;
+      }
+      const std::uint32_t begin = mesh.face_offsets[f], s = canonical_start(f);
+      std::uint64_t h = 0x9E3779B97F4A7C15ull ^ (std::uint64_t{k} << 32 | material(f));
+      for (std::uint32_t c = 0; c < k; ++c) {
+        h = (h ^ mesh.corner_vertex(begin + (s + c) % k)) * 0x100000001B3ull;
+        h ^= h >> 29;
+      }
+      hash[f] = h;
+      partition[f] = bits == 0 ? 0u : static_cast<std::uint32_t>(h >> (64 - bits));
     }
-    for (std::size_t i = h & (capacity - 1);; i = (i + 1) & (capacity - 1)) {
-      if (slot_face[i] == kInvalidIndex) {
-        slot_face[i] = f;
-        slot_hash[i] = h;
-        break;
-      }
-      if (slot_hash[i] == h && same(slot_face[i], f)) {
-        repeats.push_back(f);
-        break;
-      }
+  });
+  // Faces by partition, ascending within each (a counting sort).
+  std::vector<std::uint32_t> first(partitions + 1, 0);
+  for (std::uint32_t p : partition) {
+    if (p != kSkipped) ++first[p + 1];
+  }
+  for (std::size_t p = 0; p < partitions; ++p) first[p + 1] += first[p];
+  std::vector<std::uint32_t> order(first[partitions]);
+  {
+    std::vector<std::uint32_t> at(first.begin(), first.end() - 1);
+    for (std::uint32_t f = 0; f < faces; ++f) {
+      if (partition[f] != kSkipped) order[at[partition[f]]++] = f;
     }
   }
+  std::vector<std::vector<std::uint32_t>> found(partitions);
+  for_ranges(partitions, 1, [&](std::size_t b, std::size_t e) {
+    std::vector<std::uint32_t> slot_face;
+    std::vector<std::uint64_t> slot_hash;
+    for (std::size_t p = b; p < e; ++p) {
+      const std::size_t n = first[p + 1] - first[p];
+      std::size_t capacity = 16;
+      while (capacity < 2 * n) capacity *= 2;
+      slot_face.assign(capacity, kInvalidIndex);
+      slot_hash.resize(capacity);
+      for (std::size_t j = first[p]; j < first[p + 1]; ++j) {
+        const std::uint32_t f = order[j];
+        const std::uint64_t h = hash[f];
+        for (std::size_t i = h & (capacity - 1);; i = (i + 1) & (capacity - 1)) {
+          if (slot_face[i] == kInvalidIndex) {
+            slot_face[i] = f;
+            slot_hash[i] = h;
+            break;
+          }
+          if (slot_hash[i] == h && same(slot_face[i], f)) {
+            found[p].push_back(f);
+            break;
+          }
+        }
+      }
+    }
+  });
+  std::vector<std::uint32_t> repeats;
+  for (const std::vector<std::uint32_t>& list : found) repeats.insert(repeats.end(), list.begin(), list.end());
+  std::sort(repeats.begin(), repeats.end());
   return repeats;
 }
 

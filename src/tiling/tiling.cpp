@@ -566,7 +566,7 @@ SimplifyResult simplify_maybe_tiled(const Mesh& mesh, const SimplifyOptions& opt
   const std::vector<std::string> problems = options.validate();
   if (!problems.empty()) return simplify(mesh, options);  // throws with the full list
   // As simplify() does: repeated faces go first, and a ratio target stays a ratio of the input as given.
-  const std::vector<std::uint32_t> repeats = repeated_faces(mesh);
+  const std::vector<std::uint32_t> repeats = repeated_faces(mesh, options.threads);
   if (!repeats.empty()) {
     SimplifyOptions rest = options;
     rest.target_triangles = tiling::global_target(options, mesh.triangle_count());

@@ -199,8 +199,9 @@ Mesh compact_vertices_and_wedges(const Mesh& m, std::vector<std::uint32_t>& wedg
 // the same material. Such a face draws nothing the earlier one does not (exporters write some twice: the
 // corpus's MakeHuman hair has 152), but it makes each of its edges non-manifold, which stops the simplifiers
 // around it. Ascending ids; faces with a repeated vertex or an out-of-range index are never listed, nor a
-// face wound the other way (a back face is drawn differently).
-std::vector<std::uint32_t> repeated_faces(const Mesh& mesh);
+// face wound the other way (a back face is drawn differently). `threads`: 0 = the current arena's, 1 = this
+// thread only; the result is the same for any value.
+std::vector<std::uint32_t> repeated_faces(const Mesh& mesh, unsigned threads = 0);
 
 // A copy of `mesh` without the listed faces (ascending ids); vertices and wedges stay as they are.
 Mesh without_faces(const Mesh& mesh, std::span<const std::uint32_t> faces);

@@ -7,6 +7,8 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <map>
+#include <random>
 #include <vector>
 
 namespace lodforge {
@@ -117,6 +119,44 @@ TEST(RepeatedFaces, ListsLaterCopiesOfTheSameFaceOnly) {
   }
   EXPECT_TRUE(repeated_faces(kept).empty());
   EXPECT_EQ(without_faces(m, {}), m);
+}
+
+// Enough faces for many partitions and the parallel path: every face's answer against a brute-force one (a map
+// from the canonical corner cycle and material to the first face with it), on any thread count.
+TEST(RepeatedFaces, ALargeMeshGetsTheBruteForceAnswerOnAnyThreadCount) {
+  Mesh m;
+  m.materials.resize(3);
+  constexpr std::uint32_t kVertices = 3000;
+  for (std::uint32_t v = 0; v < kVertices; ++v) m.add_vertex_with_wedge({{static_cast<float>(v), 0, 0}});
+  std::mt19937 rng(7);
+  std::vector<std::vector<std::uint32_t>> made;
+  for (int f = 0; f < 200000; ++f) {
+    std::vector<std::uint32_t> face;
+    if (!made.empty() && rng() % 8 == 0) {  // a copy of an earlier face, from another corner or wound back
+      face = made[rng() % made.size()];
+      std::rotate(face.begin(), face.begin() + static_cast<std::ptrdiff_t>(rng() % face.size()), face.end());
+      if (rng() % 4 == 0) std::reverse(face.begin(), face.end());
+    } else {
+      const std::size_t k = 3 + rng() % 3;
+      for (std::size_t c = 0; c < k; ++c) face.push_back(rng() % (rng() % 16 == 0 ? 4 : kVertices));
+    }
+    made.push_back(face);
+    m.add_face(face.data(), face.size(), static_cast<std::uint32_t>(rng() % 4 == 0 ? 1 + rng() % 2 : 0));
+  }
+  std::vector<std::uint32_t> expected;
+  std::map<std::pair<std::vector<std::uint32_t>, std::uint32_t>, std::uint32_t> first;
+  for (std::uint32_t f = 0; f < m.face_count(); ++f) {
+    std::vector<std::uint32_t> cycle(made[f]);
+    std::vector<std::uint32_t> sorted(cycle);
+    std::sort(sorted.begin(), sorted.end());
+    if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) continue;  // a repeated corner
+    std::rotate(cycle.begin(), std::min_element(cycle.begin(), cycle.end()), cycle.end());
+    if (!first.try_emplace({cycle, m.face_material[f]}, f).second) expected.push_back(f);
+  }
+  ASSERT_GT(expected.size(), 10000u);
+  EXPECT_EQ(repeated_faces(m, 1), expected);
+  EXPECT_EQ(repeated_faces(m, 2), expected);
+  EXPECT_EQ(repeated_faces(m), expected);
 }
 
 }  // namespace
