@@ -852,13 +852,15 @@ class Pipeline {
   }
 
   // The report's distances of a LOD from its source (both in world space), sampled by their size.
-  EvalResult evaluate_lod(Job& job, const Mesh& source, const Mesh& lod) const {
-    const std::size_t larger = std::max(source.triangle_count(), lod.triangle_count());
+  // `reference` is the source prepared once per asset (`source_triangles` its triangle count).
+  EvalResult evaluate_lod(Job& job, const EvalReference& reference, std::size_t source_triangles,
+                          const Mesh& lod) const {
+    const std::size_t larger = std::max(source_triangles, lod.triangle_count());
     EvalOptions eval;
     eval.samples = std::clamp(kEvalSamplesPerTriangle * larger, kEvalSamplesMin, kEvalSamplesMax);
     eval.threads = threads_for(larger, jobs_);
     eval.stop = job.stop_request();
-    EvalResult e = evaluate(source, lod, eval);
+    EvalResult e = evaluate(reference, lod, eval);
     if (e.stopped) throw TimedOut{};
     return e;
   }
@@ -867,6 +869,13 @@ class Pipeline {
     // Measured in world space (glTF node transforms applied), as the asset is seen and as its diagonal is.
     io::Asset placed = with_meshes(job.asset, job.sources);
     const Mesh source = io::world_surface(placed);
+    const std::size_t source_triangles = source.triangle_count();
+    // Every LOD is measured against the same source: its surface and BVH are built once.
+    std::optional<EvalReference> reference;
+    auto prepared = [&]() -> const EvalReference& {
+      if (!reference) reference.emplace(source, threads_for(source_triangles, jobs_));
+      return *reference;
+    };
     Json lods = Json::array();
     double coverage_above = 1.0;
     job.coverage.clear();
@@ -908,7 +917,7 @@ class Pipeline {
 
       placed.meshes = job.levels[k];
       const Mesh lod = io::world_surface(placed);
-      const EvalResult e = evaluate_lod(job, source, lod);
+      const EvalResult e = evaluate_lod(job, prepared(), source_triangles, lod);
       const quad::QuadStats quads = quad::quad_stats(lod);
 
       // Where this LOD switches in (share of screen height): the config's own screen size, else where its
@@ -959,12 +968,14 @@ class Pipeline {
       }
     }
     job.record["lods"] = std::move(lods);
-    if (!job.cls->conservative.empty()) job.record["conservative_lods"] = conservative_records(job, source, placed);
+    if (!job.cls->conservative.empty()) {
+      job.record["conservative_lods"] = conservative_records(job, source, prepared(), placed);
+    }
   }
 
   // report.json "conservative_lods": per collision/occluder entry what it asked and what it got, measured against
   // the source in world space like the render LODs, plus the volume change where the source is closed.
-  Json conservative_records(Job& job, const Mesh& source, io::Asset& placed) const {
+  Json conservative_records(Job& job, const Mesh& source, const EvalReference& reference, io::Asset& placed) const {
     Json out = Json::array();
     const bool closed = summarize_topology(source, build_topology(source)).closed_manifold();
     const double source_volume = closed ? signed_volume(source) : 0.0;
@@ -998,7 +1009,7 @@ class Pipeline {
       for (const std::string& s : stops) stop += (stop.empty() ? "" : ",") + s;
       placed.meshes = job.conservative[c];
       const Mesh lod = io::world_surface(placed);
-      const EvalResult e = evaluate_lod(job, source, lod);
+      const EvalResult e = evaluate_lod(job, reference, source.triangle_count(), lod);
       // Volume change in per cent of the source's (bounding LODs grow, occluders shrink); null for an open source.
       const Json volume_change = closed && source_volume > 0
                                      ? Json(finite(100.0 * (signed_volume(lod) / source_volume - 1.0)))

@@ -268,12 +268,8 @@ Direction measure(const Surface& from, const Surface& to, std::size_t area_sampl
   return out;
 }
 
-EvalResult evaluate_in_arena(const Mesh& original, const Mesh& simplified, const EvalOptions& options) {
-  Surface a, b;
-  tbb::parallel_invoke([&] { a = make_surface(original); }, [&] { b = make_surface(simplified); });
-  tbb::parallel_invoke([&] { a.bvh = TriangleBvh(a.positions, a.indices); },
-                       [&] { b.bvh = TriangleBvh(b.positions, b.indices); });
-
+// Both directions between prepared surfaces; `diagonal` is the original's.
+EvalResult evaluate_surfaces(const Surface& a, double diagonal, const Surface& b, const EvalOptions& options) {
   const std::size_t samples = options.samples > 0
                                   ? options.samples
                                   : default_eval_samples(std::max(a.triangle_count(), b.triangle_count()));
@@ -292,7 +288,7 @@ EvalResult evaluate_in_arena(const Mesh& original, const Mesh& simplified, const
     r.mean = (ab.sum + ba.sum) / static_cast<double>(count);
     r.rms = std::sqrt((ab.sum_sq + ba.sum_sq) / static_cast<double>(count));
   }
-  r.diagonal = compute_bounds(original).diagonal();
+  r.diagonal = diagonal;
   r.work = ab.work;
   r.work += ba.work;
 
@@ -313,7 +309,49 @@ EvalResult evaluate_in_arena(const Mesh& original, const Mesh& simplified, const
   return r;
 }
 
+EvalResult evaluate_in_arena(const Mesh& original, const Mesh& simplified, const EvalOptions& options) {
+  Surface a, b;
+  tbb::parallel_invoke([&] { a = make_surface(original); }, [&] { b = make_surface(simplified); });
+  tbb::parallel_invoke([&] { a.bvh = TriangleBvh(a.positions, a.indices); },
+                       [&] { b.bvh = TriangleBvh(b.positions, b.indices); });
+  return evaluate_surfaces(a, compute_bounds(original).diagonal(), b, options);
+}
+
+// A private arena so `threads` caps this call only, without touching global TBB state. More threads than
+// cores would only make TBB warn; the result does not depend on the count anyway.
+tbb::task_arena eval_arena(unsigned requested) {
+  const int cores = tbb::info::default_concurrency();
+  return tbb::task_arena(requested == 0 ? cores : std::min(static_cast<int>(requested), cores));
+}
+
 }  // namespace
+
+struct EvalReference::Prepared {
+  Surface surface;
+  double diagonal = 0;
+};
+
+EvalReference::EvalReference(const Mesh& original, unsigned threads) : prepared_(std::make_unique<Prepared>()) {
+  tbb::task_arena arena = eval_arena(threads);
+  arena.execute([&] {
+    prepared_->surface = make_surface(original);
+    prepared_->surface.bvh = TriangleBvh(prepared_->surface.positions, prepared_->surface.indices);
+  });
+  prepared_->diagonal = compute_bounds(original).diagonal();
+}
+
+EvalReference::~EvalReference() = default;
+EvalReference::EvalReference(EvalReference&&) noexcept = default;
+EvalReference& EvalReference::operator=(EvalReference&&) noexcept = default;
+
+EvalResult evaluate(const EvalReference& original, const Mesh& simplified, const EvalOptions& options) {
+  tbb::task_arena arena = eval_arena(options.threads);
+  return arena.execute([&] {
+    Surface b = make_surface(simplified);
+    b.bvh = TriangleBvh(b.positions, b.indices);
+    return evaluate_surfaces(original.prepared().surface, original.prepared().diagonal, b, options);
+  });
+}
 
 std::size_t default_eval_samples(std::size_t larger_triangle_count) {
   // Metro's default is 10 x the face count: about 1.1 s for two 100k-triangle meshes on 2 cores (queries
@@ -324,11 +362,7 @@ std::size_t default_eval_samples(std::size_t larger_triangle_count) {
 }
 
 EvalResult evaluate(const Mesh& original, const Mesh& simplified, const EvalOptions& options) {
-  // A private arena so `threads` caps this call only, without touching global TBB state. More threads than
-  // cores would only make TBB warn; the result does not depend on the count anyway.
-  const int cores = tbb::info::default_concurrency();
-  const int threads = options.threads == 0 ? cores : std::min(static_cast<int>(options.threads), cores);
-  tbb::task_arena arena(threads);
+  tbb::task_arena arena = eval_arena(options.threads);
   return arena.execute([&] { return evaluate_in_arena(original, simplified, options); });
 }
 

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 
 #include "lodforge/core/mesh.hpp"
@@ -67,5 +68,25 @@ std::size_t default_eval_samples(std::size_t larger_triangle_count);
 // Both meshes are triangulated internally (polygons fan-triangulated). Two meshes without triangles give an
 // all-zero result. Triangles with a non-finite corner are ignored.
 EvalResult evaluate(const Mesh& original, const Mesh& simplified, const EvalOptions& options = {});
+
+// An original prepared once (its sampling surface, its BVH and its diagonal) for measuring several meshes
+// against it, as a batch measures every LOD of a chain against the same source: evaluate(reference, lod)
+// gives what evaluate(original, lod) gives, bit for bit, without rebuilding the original's side each time.
+class EvalReference {
+ public:
+  // `threads` as EvalOptions::threads (the preparation's result does not depend on it).
+  explicit EvalReference(const Mesh& original, unsigned threads = 0);
+  ~EvalReference();
+  EvalReference(EvalReference&&) noexcept;
+  EvalReference& operator=(EvalReference&&) noexcept;
+
+  struct Prepared;  // private to eval.cpp
+  const Prepared& prepared() const { return *prepared_; }
+
+ private:
+  std::unique_ptr<Prepared> prepared_;
+};
+
+EvalResult evaluate(const EvalReference& original, const Mesh& simplified, const EvalOptions& options = {});
 
 }  // namespace lodforge

@@ -150,6 +150,29 @@ TEST(Evaluate, ResultIsBitIdenticalForAnyThreadCount) {
   EXPECT_NE(evaluate(a, b, other).a_to_b.mean, r1.a_to_b.mean);
 }
 
+// A prepared reference measures each mesh as evaluate(original, mesh) does, for several meshes in turn.
+TEST(Evaluate, APreparedReferenceGivesTheSameResultsForEveryMesh) {
+  const Mesh a = make_uv_sphere(24, 32);
+  const EvalReference reference(a, 1);
+  for (const Mesh& b : {transformed(make_uv_sphere(9, 13), 0.97, {{0.01, 0, 0}}), make_uv_sphere(16, 20),
+                        transformed(make_cube_quads(), 0.5, {{0, 0.2, 0}}), Mesh{}}) {
+    for (unsigned threads : {1u, 2u}) {
+      const EvalOptions options{.samples = 20000, .seed = 3, .threads = threads};
+      const EvalResult direct = evaluate(a, b, options), prepared = evaluate(reference, b, options);
+      EXPECT_EQ(std::memcmp(&direct.a_to_b, &prepared.a_to_b, sizeof(OneSided)), 0);
+      EXPECT_EQ(std::memcmp(&direct.b_to_a, &prepared.b_to_a, sizeof(OneSided)), 0);
+      EXPECT_EQ(direct.hausdorff, prepared.hausdorff);
+      EXPECT_EQ(direct.mean, prepared.mean);
+      EXPECT_EQ(direct.rms, prepared.rms);
+      EXPECT_EQ(direct.diagonal, prepared.diagonal);
+      EXPECT_EQ(direct.normal_deviation_p95_deg, prepared.normal_deviation_p95_deg);
+      EXPECT_EQ(direct.work.nodes, prepared.work.nodes);
+      EXPECT_EQ(direct.note, prepared.note);
+    }
+  }
+  EXPECT_TRUE(std::isinf(evaluate(reference, Mesh{}).hausdorff));
+}
+
 TEST(Evaluate, WorkIsTheSameForAnyThreadCount) {
   const Mesh a = make_uv_sphere(24, 32);
   const Mesh b = transformed(make_uv_sphere(9, 13), 0.97, {{0.01, 0, 0}});
