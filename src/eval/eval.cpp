@@ -53,7 +53,7 @@ double unit_double(std::uint64_t x) { return static_cast<double>(x >> 11) * 0x1.
 
 bool is_finite(const Vec3d& p) { return std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]); }
 
-// One mesh prepared for sampling and for being queried.
+// One mesh prepared for sampling and for being queried (its BVH built).
 struct Surface {
   std::vector<Vec3d> positions;
   std::vector<std::uint32_t> indices;   // three per triangle, as triangulated() makes them
@@ -97,6 +97,7 @@ Surface make_surface(const Mesh& mesh) {
   for (std::size_t v = 0; v < used.size(); ++v) {
     if (used[v]) s.vertices.push_back(static_cast<std::uint32_t>(v));
   }
+  s.bvh = TriangleBvh(s.positions, s.indices);
   return s;
 }
 
@@ -312,8 +313,6 @@ EvalResult evaluate_surfaces(const Surface& a, double diagonal, const Surface& b
 EvalResult evaluate_in_arena(const Mesh& original, const Mesh& simplified, const EvalOptions& options) {
   Surface a, b;
   tbb::parallel_invoke([&] { a = make_surface(original); }, [&] { b = make_surface(simplified); });
-  tbb::parallel_invoke([&] { a.bvh = TriangleBvh(a.positions, a.indices); },
-                       [&] { b.bvh = TriangleBvh(b.positions, b.indices); });
   return evaluate_surfaces(a, compute_bounds(original).diagonal(), b, options);
 }
 
@@ -333,10 +332,7 @@ struct EvalReference::Prepared {
 
 EvalReference::EvalReference(const Mesh& original, unsigned threads) : prepared_(std::make_unique<Prepared>()) {
   tbb::task_arena arena = eval_arena(threads);
-  arena.execute([&] {
-    prepared_->surface = make_surface(original);
-    prepared_->surface.bvh = TriangleBvh(prepared_->surface.positions, prepared_->surface.indices);
-  });
+  arena.execute([&] { prepared_->surface = make_surface(original); });
   prepared_->diagonal = compute_bounds(original).diagonal();
 }
 
@@ -347,9 +343,8 @@ EvalReference& EvalReference::operator=(EvalReference&&) noexcept = default;
 EvalResult evaluate(const EvalReference& original, const Mesh& simplified, const EvalOptions& options) {
   tbb::task_arena arena = eval_arena(options.threads);
   return arena.execute([&] {
-    Surface b = make_surface(simplified);
-    b.bvh = TriangleBvh(b.positions, b.indices);
-    return evaluate_surfaces(original.prepared().surface, original.prepared().diagonal, b, options);
+    return evaluate_surfaces(original.prepared().surface, original.prepared().diagonal, make_surface(simplified),
+                             options);
   });
 }
 
