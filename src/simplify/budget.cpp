@@ -92,6 +92,8 @@ struct Measurement {
   std::vector<char> on_target;          // per output triangle: a reference triangle bit for bit (distance 0)
   std::vector<char> reference_on_output;  // per reference triangle: an output triangle bit for bit
   std::vector<std::uint32_t> reverse_over;  // reference triangles with a point found over the budget
+  // Boxes around the output triangles found with a point over the budget, a budget wider on every side.
+  std::vector<Bounds3> forward_over;
 };
 
 // Sampled points visited coarse to fine: every 64th, then every 8th, then the rest, each pass in order (the BVH
@@ -290,6 +292,15 @@ class Reference {
     m.sampled = std::max(m.sampled, forward.lower);
     m.certified = forward.certified;
     if (!forward.within) {
+      for (const std::uint32_t t : forward.over) {
+        Bounds3 box;
+        for (int k = 0; k < 3; ++k) box.add(lod.positions[lod.indices[3 * std::size_t{t} + k]]);
+        for (int k = 0; k < 3; ++k) {
+          box.min[k] -= budget;
+          box.max[k] += budget;
+        }
+        m.forward_over.push_back(box);
+      }
       m.within = false;
       return m;
     }
@@ -589,14 +600,17 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
                                                                : std::span<const std::uint32_t>(),
                        .budget = budget,
                        .grid_spacing = kGridSpacing * budget,
+                       .dense_regions = {},
                        .face_bounds = &face_bounds};
   const double setup_ms = elapsed_ms(t0);
 
   // The guard holds its samples; a reference triangle whose samples pass can still rise over the budget
-  // between them (over a concave crease of the output). Where the reverse bound finds one, the run is
-  // repeated with a fine lattice on it among the samples, before any back-off.
+  // between them (over a concave crease of the output), and so can an output face between its own. Where the
+  // bounds find either, the run is repeated, before any back-off, with a fine lattice on those reference
+  // triangles among the samples, and a fine grid on the new faces where those output points were.
   std::vector<Vec3d> guard_samples;
   std::vector<std::uint32_t> guard_origins;
+  std::vector<Bounds3> dense_regions;
   std::vector<CollapseRecord> log;
   SimplifyResult result;
   Measurement full;
@@ -618,18 +632,25 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
     const bool bounds_known = face_bounds.size() == result.mesh.triangle_count();
     full = reference.measure(result.mesh, budget, bounds_known ? &face_bounds : nullptr);
     ++measured;
-    if (full.within || !guarded || full.reverse_over.empty() || reruns == kGuardReruns) break;
-    if (guard_samples.empty()) {
-      guard_samples = reference.samples();
-      guard_origins.assign(guard.origins.begin(), guard.origins.end());
+    if (full.within || !guarded || reruns == kGuardReruns) break;
+    if (full.reverse_over.empty() && full.forward_over.empty()) break;
+    // Output points over the budget lie between the guard's samples of a face: where they were, the rerun
+    // tests new faces on a grid fine enough to hold every point.
+    dense_regions.insert(dense_regions.end(), full.forward_over.begin(), full.forward_over.end());
+    guard.dense_regions = dense_regions;
+    if (!full.reverse_over.empty()) {
+      if (guard_samples.empty()) {
+        guard_samples = reference.samples();
+        guard_origins.assign(guard.origins.begin(), guard.origins.end());
+      }
+      for (const std::uint32_t t : full.reverse_over) {
+        append_lattice(reference.index(), t, kLatticeSpacing * budget, guard_samples);
+      }
+      // Lattice points have no origin: the guard attaches them to their nearest face.
+      if (!guard_origins.empty()) guard_origins.resize(guard_samples.size(), kInvalidIndex);
+      guard.samples = guard_samples;
+      guard.origins = guard_origins;
     }
-    for (const std::uint32_t t : full.reverse_over) {
-      append_lattice(reference.index(), t, kLatticeSpacing * budget, guard_samples);
-    }
-    // Lattice points have no origin: the guard attaches them to their nearest face.
-    if (!guard_origins.empty()) guard_origins.resize(guard_samples.size(), kInvalidIndex);
-    guard.samples = guard_samples;
-    guard.origins = guard_origins;
     ++reruns;
     rerun_ms += elapsed_ms(t0);
   }

@@ -46,6 +46,19 @@ constexpr double kSampleReach = 0.7;
 // Faces are also sampled on a grid this much finer than the measurement's.
 constexpr double kDenseSpacing = 0.5;
 
+// In a dense region, faces are also tested on a grid of this spacing (in budgets), at most kMaxFineGrid steps
+// per edge: 0.7 of the budget at the grid points plus a cell's cover (at most 0.58 of its longest edge) stays
+// under the budget.
+constexpr double kFineSpacing = 0.5;
+constexpr int kMaxFineGrid = 64;
+
+bool overlaps(const Bounds3& a, const Bounds3& b) {
+  for (int k = 0; k < 3; ++k) {
+    if (a.max[k] < b.min[k] || b.max[k] < a.min[k]) return false;
+  }
+  return true;
+}
+
 // Samples whose attached face keeps them this close (in budgets) stay where they are when the face changes.
 constexpr double kStayFraction = 0.25;
 
@@ -57,15 +70,34 @@ bool CollapseMesh::face_within(const Vec3d& p, const Vec3d& q, const Vec3d& r, s
   const double reach = kSampleReach * guard_budget_;
   auto near = [&](const Vec3d& y) { return guard_bvh_->any_within(y, reach, hint); };
   // The dense grid skips the points of the measurement's grid that it shares (the same u, v: the same point).
-  return for_each_face_sample(p, q, r, guard_spacing_, near) &&
-         for_each_grid_point(p, q, r, kDenseSpacing * guard_spacing_, near, grid_steps(p, q, r, guard_spacing_));
+  if (!for_each_face_sample(p, q, r, guard_spacing_, near) ||
+      !for_each_grid_point(p, q, r, kDenseSpacing * guard_spacing_, near, grid_steps(p, q, r, guard_spacing_))) {
+    return false;
+  }
+  return !in_dense_region(p, q, r) ||
+         for_each_grid_point(p, q, r, kFineSpacing * guard_budget_, near, 0, kMaxFineGrid);
+}
+
+bool CollapseMesh::in_dense_region(const Vec3d& p, const Vec3d& q, const Vec3d& r) const {
+  if (guard_dense_.empty()) return false;
+  Bounds3 box;
+  box.add(p);
+  box.add(q);
+  box.add(r);
+  return std::any_of(guard_dense_.begin(), guard_dense_.end(), [&](const Bounds3& d) { return overlaps(box, d); });
+}
+
+int CollapseMesh::guard_steps(const Vec3d& p, const Vec3d& q, const Vec3d& r) const {
+  // The edge midpoints where the triangle is too small for a grid: a lattice of 2 steps.
+  const int steps = std::max(grid_steps(p, q, r, kDenseSpacing * guard_spacing_), guard_spacing_ > 0 ? 2 : 1);
+  if (!in_dense_region(p, q, r)) return steps;
+  return std::max(steps, grid_steps(p, q, r, kFineSpacing * guard_budget_, kMaxFineGrid));
 }
 
 double CollapseMesh::guarded_face_bound(const Vec3d& p, const Vec3d& q, const Vec3d& r, double corners) const {
-  // Every point of the triangle is within cover(pqr) / steps of a point of the lattice the guard tested (the
-  // dense grid's, its corners included; the edge midpoints where the triangle is too small for a grid), and the
-  // distance to a surface is 1-Lipschitz.
-  const int steps = std::max(grid_steps(p, q, r, kDenseSpacing * guard_spacing_), guard_spacing_ > 0 ? 2 : 1);
+  // Every point of the triangle is within cover(pqr) / steps of a point of a lattice the guard tested (its
+  // corners included), and the distance to a surface is 1-Lipschitz.
+  const int steps = guard_steps(p, q, r);
   return std::max(corners, kSampleReach * guard_budget_) + cover_radius(p, q, r) / steps + guard_rounding_;
 }
 
@@ -93,6 +125,7 @@ void CollapseMesh::setup_guard(const GuardReference& g, Parallel& parallel) {
   guard_budget2_ = (guard_budget_ / scale_) * (guard_budget_ / scale_);
   guard_spacing_ = g.grid_spacing;
   guard_bvh_ = g.bvh;
+  guard_dense_.assign(g.dense_regions.begin(), g.dense_regions.end());
 
   // Each sample to a working face: where the reference is the input, the face it lies on (its own triangle, or
   // one around its vertex); the rest to the nearest face (a BVH over the faces as they are now).

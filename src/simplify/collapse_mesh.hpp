@@ -122,21 +122,22 @@ void small_sort(T* p, std::size_t n) {
 }
 
 // The steps per edge of the grid for_each_grid_point lays on triangle abc: about `spacing` apart, at most
-// kMaxGrid; 0 (no grid) where the triangle is no longer than that.
+// `max_steps`; 0 (no grid) where the triangle is no longer than that.
 inline constexpr int kMaxGrid = 6;
-inline int grid_steps(const Vec3d& a, const Vec3d& b, const Vec3d& c, double spacing) {
+inline int grid_steps(const Vec3d& a, const Vec3d& b, const Vec3d& c, double spacing, int max_steps = kMaxGrid) {
   if (!(spacing > 0)) return 0;
   const double longest = std::sqrt(std::max({dot(b - a, b - a), dot(c - b, c - b), dot(a - c, a - c)}));
   if (!(longest > spacing)) return 0;  // small: its corners and centroid are close enough together
-  return static_cast<int>(std::min(std::ceil(longest / spacing), double{kMaxGrid}));
+  return static_cast<int>(std::min(std::ceil(longest / spacing), double(max_steps)));
 }
 
 // Calls f(p) for the points of the grid of grid_steps() inside triangle abc (not the corners), until f returns
 // false; false if it did. Points of a coarser grid of `skip_steps` steps on the same triangle (bit for bit the
 // same points, already visited by the caller) are skipped.
 template <typename F>
-bool for_each_grid_point(const Vec3d& a, const Vec3d& b, const Vec3d& c, double spacing, F&& f, int skip_steps = 0) {
-  const int steps = grid_steps(a, b, c, spacing);
+bool for_each_grid_point(const Vec3d& a, const Vec3d& b, const Vec3d& c, double spacing, F&& f, int skip_steps = 0,
+                         int max_steps = kMaxGrid) {
+  const int steps = grid_steps(a, b, c, spacing, max_steps);
   for (int i = 0; i <= steps; ++i) {
     for (int j = 0; i + j <= steps; ++j) {
       if (i == steps || j == steps || i + j == 0) continue;  // the corners
@@ -172,6 +173,9 @@ struct GuardReference {
   std::span<const std::uint32_t> origins;
   double budget = 0;
   double grid_spacing = 0;
+  // Boxes (model units) where an earlier run's output had a point over the budget: new faces that reach into
+  // one are also tested on a fine grid there, fine enough that passing it holds every point of the face.
+  std::span<const Bounds3> dense_regions;
   // Filled at the end of the run where not null: per output triangle, in output order, an upper bound on its
   // distance to the reference (model units; +inf where none is known), from the points the guard tested.
   std::vector<double>* face_bounds = nullptr;
@@ -435,6 +439,9 @@ class CollapseMesh {
   // `b_moved`: the survivor moved; `kept`: how many faces at the head of its list were its own and unchanged.
   void guard_reattach(const Check& c, Scratch& s, bool b_moved, std::size_t kept);
   bool face_within(const Vec3d& p, const Vec3d& q, const Vec3d& r, std::uint32_t& hint) const;
+  bool in_dense_region(const Vec3d& p, const Vec3d& q, const Vec3d& r) const;
+  // The steps per edge of the densest grid face_within() tests on pqr (model units).
+  int guard_steps(const Vec3d& p, const Vec3d& q, const Vec3d& r) const;
   // An upper bound on the distance of triangle pqr (model units) to the reference, given bounds on its corners'
   // distances and that its guard samples passed.
   double guarded_face_bound(const Vec3d& p, const Vec3d& q, const Vec3d& r, double corners) const;
@@ -522,6 +529,7 @@ class CollapseMesh {
   double guard_budget_ = 0.0;          // model units, less a margin for rounding the output to float
   double guard_budget2_ = 0.0;         // the same, normalised and squared
   double guard_spacing_ = 0.0;         // model units
+  std::vector<Bounds3> guard_dense_;   // GuardReference::dense_regions, model units
   std::vector<Vec3d> guard_samples_;   // normalised
   std::vector<std::uint32_t> guard_head_;  // per face: its first attached sample, kInvalidIndex if none
   std::vector<std::uint32_t> guard_next_;  // per sample: the next one attached to the same face

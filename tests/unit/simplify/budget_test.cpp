@@ -256,6 +256,7 @@ TEST(ErrorBudget, GuardedFaceBoundsHoldEveryPointOfTheirTriangle) {
                                            .origins = {},
                                            .budget = budget * diag,
                                            .grid_spacing = 4.0 * budget * diag,
+                                           .dense_regions = {},
                                            .face_bounds = &bounds};
       const SimplifyOptions o{.target_ratio = 0.001, .max_error_rel = budget};
       const SimplifyResult r = collapse::run_edge_collapse(*input, o, {}, nullptr, &guard);
@@ -369,6 +370,124 @@ TEST(ErrorBudget, AGuardedRunIsRepeatedWithSamplesWhereTheReverseBoundFails) {
   // The reference's 3 vertices and 1 centroid, then a lattice on its one triangle (about 4 points per budget).
   EXPECT_EQ(RerunProbe::sample_counts[0], 4u);
   EXPECT_GT(RerunProbe::sample_counts[1], 4u + 1000u);
+  EXPECT_EQ(r.budget.guard_reruns, 1u);
+  EXPECT_TRUE(r.budget.within);
+  EXPECT_EQ(r.budget.collapses_undone, 0u);
+  EXPECT_EQ(r.budget.prefixes_measured, 2u);
+}
+
+// A guard with a dense region tests the new faces there on a fine grid: every point of every such face is then
+// within the budget, and so is the bound of each face no longer than the fine grid's cap (64 steps of half a
+// budget).
+TEST(ErrorBudget, GuardedFacesInADenseRegionAreHeldEverywhere) {
+  const Mesh source = triangulated(make_bumpy_sphere(40, 60));
+  const double diag = compute_bounds(source).diagonal();
+  const TriangleBvh bvh = make_triangle_bvh(source);
+  std::vector<Vec3d> samples;
+  for (const Vec3f& p : source.positions) samples.push_back(to_double(p));
+  const Bounds3 everywhere = bvh.bounds();
+  for (const double budget : {0.004, 0.02}) {
+    std::vector<double> bounds, plain_bounds;
+    collapse::GuardReference guard{.bvh = &bvh,
+                                   .samples = samples,
+                                   .origins = {},
+                                   .budget = budget * diag,
+                                   .grid_spacing = 4.0 * budget * diag,
+                                   .dense_regions = {},
+                                   .face_bounds = &plain_bounds};
+    const SimplifyOptions o{.target_ratio = 0.001, .max_error_rel = budget};
+    const SimplifyResult plain = collapse::run_edge_collapse(source, o, {}, nullptr, &guard);
+    guard.dense_regions = std::span<const Bounds3>(&everywhere, 1);
+    guard.face_bounds = &bounds;
+    const SimplifyResult r = collapse::run_edge_collapse(source, o, {}, nullptr, &guard);
+    ASSERT_EQ(bounds.size(), r.mesh.triangle_count()) << budget;
+    EXPECT_GE(r.mesh.triangle_count(), plain.mesh.triangle_count()) << "a finer test refuses more, never less";
+    const std::vector<std::uint32_t> idx = triangle_vertex_indices(r.mesh);
+    double worst = 0, worst_bound = 0;
+    for (std::size_t t = 0; t < bounds.size(); ++t) {
+      const Vec3d a = to_double(r.mesh.positions[idx[3 * t]]), b = to_double(r.mesh.positions[idx[3 * t + 1]]),
+                  c = to_double(r.mesh.positions[idx[3 * t + 2]]);
+      const double longest = std::max({length(b - a), length(c - b), length(a - c)});
+      if (longest <= 32.0 * budget * diag) worst_bound = std::max(worst_bound, bounds[t]);
+      constexpr int n = 12;
+      for (int i = 0; i <= n; ++i) {
+        for (int j = 0; i + j <= n; ++j) {
+          const Vec3d p = a + (b - a) * (double(i) / n) + (c - a) * (double(j) / n);
+          worst = std::max(worst, bvh.closest_point(p).distance());
+        }
+      }
+    }
+    EXPECT_LE(worst, budget * diag) << budget;
+    EXPECT_LE(worst_bound, budget * diag) << budget;
+    EXPECT_GT(*std::max_element(plain_bounds.begin(), plain_bounds.end()), budget * diag)
+        << "without the region, some face's bound is over the budget (else this test shows nothing)";
+  }
+}
+
+// A guarded run whose output the forward bound rejects (a point of an output face over the budget between
+// the face's samples) is run again with a dense region around that face, before any back-off. The reference
+// is a square with a round hole; the stand-in engine's first output covers the hole with two big triangles
+// whose samples all lie on the reference, and its second, given a region over the hole, is the reference.
+struct ForwardRerunProbe {
+  static inline std::vector<std::vector<Bounds3>> regions;
+  static inline Mesh covering, reference;
+  static SimplifyResult engine(const Mesh& input, const SimplifyOptions&, const CollapsePolicies&,
+                               std::vector<collapse::CollapseRecord>* log, const collapse::GuardReference* guard) {
+    regions.emplace_back(guard->dense_regions.begin(), guard->dense_regions.end());
+    if (log != nullptr) log->clear();
+    SimplifyResult r;
+    r.triangles_before = input.triangle_count();
+    r.mesh = guard->dense_regions.empty() ? covering : reference;
+    r.triangles_after = r.mesh.triangle_count();
+    r.stop_reason = StopReason::error_budget;
+    return r;
+  }
+};
+
+TEST(ErrorBudget, AGuardedRunIsRepeatedWithAFineGridWhereTheForwardBoundFails) {
+  // Unit cells of [0, 30]^2, less those wholly within 3 of the hole's centre; the output's grid points (every
+  // 5 units along the edges of its triangles), edge midpoints and centroids are at least 3.5 from it.
+  const Vec3d hole{{12.5, 12.5, 0}};
+  Mesh holed;
+  for (int y = 0; y <= 30; ++y) {
+    for (int x = 0; x <= 30; ++x) holed.add_vertex_with_wedge(Vec3f{{float(x), float(y), 0}});
+  }
+  auto at = [](int x, int y) { return static_cast<std::uint32_t>(y * 31 + x); };
+  for (int y = 0; y < 30; ++y) {
+    for (int x = 0; x < 30; ++x) {
+      bool inside = true;
+      for (const auto& [dx, dy] : {std::pair{0, 0}, std::pair{1, 0}, std::pair{0, 1}, std::pair{1, 1}}) {
+        inside = inside && length(Vec3d{{double(x + dx), double(y + dy), 0}} - hole) < 3.0;
+      }
+      if (inside) continue;
+      holed.add_face({at(x, y), at(x + 1, y), at(x + 1, y + 1)});
+      holed.add_face({at(x, y), at(x + 1, y + 1), at(x, y + 1)});
+    }
+  }
+  ASSERT_LT(holed.triangle_count(), 1800u);
+  Mesh covering;
+  for (const Vec3f& p : {Vec3f{{0, 0, 0}}, Vec3f{{30, 0, 0}}, Vec3f{{30, 30, 0}}, Vec3f{{0, 30, 0}}}) {
+    covering.add_vertex_with_wedge(p);
+  }
+  covering.add_face({0, 1, 3});
+  covering.add_face({1, 2, 3});
+  ForwardRerunProbe::covering = covering;
+  ForwardRerunProbe::reference = holed;
+  ForwardRerunProbe::regions.clear();
+  const double diag = compute_bounds(holed).diagonal();
+  const SimplifyOptions o{.target_ratio = 0.5, .max_error_rel = 1.0 / diag, .threads = 1};
+  const SimplifyResult r = collapse::run_within_budget(&ForwardRerunProbe::engine, holed, o, {});
+  ASSERT_EQ(ForwardRerunProbe::regions.size(), 2u);
+  EXPECT_TRUE(ForwardRerunProbe::regions[0].empty());
+  ASSERT_FALSE(ForwardRerunProbe::regions[1].empty());
+  const bool covers_hole = std::any_of(ForwardRerunProbe::regions[1].begin(), ForwardRerunProbe::regions[1].end(),
+                                       [&](const Bounds3& b) {
+                                         for (int k = 0; k < 3; ++k) {
+                                           if (hole[k] < b.min[k] || hole[k] > b.max[k]) return false;
+                                         }
+                                         return true;
+                                       });
+  EXPECT_TRUE(covers_hole);
   EXPECT_EQ(r.budget.guard_reruns, 1u);
   EXPECT_TRUE(r.budget.within);
   EXPECT_EQ(r.budget.collapses_undone, 0u);
