@@ -29,8 +29,7 @@ struct Hit {
   std::uint32_t triangle = kInvalidIndex;
 };
 
-// Where the query allowance cannot split every open node, a round splits the worst of them with this fraction
-// (1/k) of what is left.
+// A round splits the worst open nodes with at most this fraction (1/k) of the query allowance left.
 constexpr std::size_t kDeepFraction = 4;
 // A node lying on a flat region of the target counts as on it within this fraction of `good_enough`.
 constexpr double kFlatSlack = 0.05;
@@ -291,6 +290,7 @@ DistanceBound bound_triangles(std::span<const Vec3d> positions, std::span<const 
   DistanceBound out;
   std::vector<std::uint32_t> triangles;  // first index of each triangle with finite corners
   std::vector<std::uint32_t> corners;    // vertices used by those, ascending
+  double settled = 0.0;                  // largest bound of the nodes no longer refined
   {
     std::vector<char> used(positions.size(), 0);
     for (std::uint32_t t = 0; t + 2 < idx.size(); t += 3) {
@@ -298,6 +298,13 @@ DistanceBound bound_triangles(std::span<const Vec3d> positions, std::span<const 
       for (std::uint32_t k = 0; k < 3; ++k) finite = finite && finite3(positions[idx[t + k]]);
       if (!finite) continue;
       if (options.on_target != nullptr && t / 3 < options.on_target->size() && (*options.on_target)[t / 3]) continue;
+      if (options.settle_known && options.known_upper != nullptr && t / 3 < options.known_upper->size()) {
+        const double known = (*options.known_upper)[t / 3];
+        if (known >= 0 && known <= options.give_up_above) {
+          settled = std::max(settled, known);
+          continue;
+        }
+      }
       triangles.push_back(t);
       for (std::uint32_t k = 0; k < 3; ++k) used[idx[t + k]] = 1;
     }
@@ -305,7 +312,10 @@ DistanceBound bound_triangles(std::span<const Vec3d> positions, std::span<const 
       if (used[v]) corners.push_back(static_cast<std::uint32_t>(v));
     }
   }
-  if (triangles.empty()) return out;
+  if (triangles.empty()) {
+    out.upper = settled;
+    return out;
+  }
   if (target.empty()) {
     out.upper = out.lower = std::numeric_limits<double>::infinity();
     return out;
@@ -343,7 +353,6 @@ DistanceBound bound_triangles(std::span<const Vec3d> positions, std::span<const 
     }
   }
 
-  double settled = 0.0;  // largest bound of the nodes no longer refined
   std::vector<Bound> bounds;
   std::vector<std::uint32_t> split;
   std::vector<Node> next;
@@ -405,11 +414,11 @@ DistanceBound bound_triangles(std::span<const Vec3d> positions, std::span<const 
       out.upper = std::max({settled, open, out.lower});
       return over.empty() ? out : give_up();
     }
-    if (split.size() > affordable) {
-      // Not all can split: the worst do (ties by position, so the choice is the same on any thread count), the
-      // others wait with their bounds. Only a part of what is left is spent per round, so that the worst
-      // nodes, which bound the result, are split again in the rounds after rather than the allowance spread
-      // over nodes that do not decide it.
+    if (split.size() > affordable / kDeepFraction) {
+      // A round spends at most a part of what is left, on the worst nodes (ties by position, so the choice is
+      // the same on any thread count); the others wait with their bounds. Where the allowance cannot settle
+      // every node, the worst, which bound the result, are then split again in the rounds after rather than
+      // the allowance spread over nodes that do not decide it.
       const std::size_t take = std::max<std::size_t>(1, affordable / kDeepFraction);
       std::stable_sort(split.begin(), split.end(),
                        [&](std::uint32_t x, std::uint32_t y) { return bounds[x].upper > bounds[y].upper; });

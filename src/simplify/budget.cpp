@@ -44,8 +44,11 @@ constexpr double kFinestTolerance = 0.002;
 // it, and the reported bound is close enough. Flat parts lying on the input (CAD faces) have distance zero,
 // and a Lipschitz bound only reaches zero by splitting without end.
 constexpr double kGoodEnough = 0.5;
-// Closest-point queries allowed per output triangle (plus a base) when bounding a prefix.
-constexpr std::size_t kQueriesPerTriangle = 16, kBaseQueries = 50000;
+// Closest-point queries allowed per triangle measured (plus a base) when bounding a prefix. Output → reference
+// on a guarded LOD rarely converges (the guard holds every face near 0.7 of the budget, and a Lipschitz bound
+// gets there only by splitting without end), so its allowance buys only a tighter reported bound; reference
+// → output decides and usually converges.
+constexpr std::size_t kForwardQueriesPerTriangle = 4, kReverseQueriesPerTriangle = 16, kBaseQueries = 50000;
 // Output triangles are sampled on a grid of this spacing, in budgets (at most kMaxGrid steps per edge).
 constexpr double kGridSpacing = 4.0;
 // Searches deciding their steps by the screen before every step is measured in full.
@@ -282,12 +285,14 @@ class Reference {
   // (as far as its query allowance goes) and down to kGoodEnough of it. Output → reference is also the bound
   // reported. Reference → output matters where a long reference triangle passes over a concave crease of
   // the output: its samples (corners, centroid) are near the output, a point between them is not.
-  // `face_bounds` (may be null): per output triangle, a bound known already (a guarded run's).
-  Measurement measure(const Mesh& output, double budget, const std::vector<double>* face_bounds = nullptr) {
+  // `face_bounds` (may be null): per output triangle, a bound known already (a guarded run's); `sample_faces`
+  // (may be null): per sample of samples(), an output triangle within the budget of it (the guard's).
+  Measurement measure(const Mesh& output, double budget, const std::vector<double>* face_bounds = nullptr,
+                      const std::vector<std::uint32_t>* sample_faces = nullptr) {
     const SurfaceIndex lod(output);
     Measurement m = screen(lod, budget);
     if (!m.within) return m;
-    const Direction forward = bound_direction(lod, index_, budget, &m.on_target, face_bounds);
+    const Direction forward = bound_direction(lod, index_, budget, &m.on_target, face_bounds, false);
     m.bound = forward.bound;
     m.sampled = std::max(m.sampled, forward.lower);
     m.certified = forward.certified;
@@ -305,8 +310,9 @@ class Reference {
       return m;
     }
     // Listing every reference triangle over the tolerance, so that a rerun of the guard gets them all at once.
-    Direction reverse =
-        bound_direction(index_, lod, kReverseTolerance * budget, &m.reference_on_output, nullptr, /*list_over=*/true);
+    const std::vector<double> known = sample_faces != nullptr ? attached_bounds(lod, *sample_faces) : std::vector<double>();
+    Direction reverse = bound_direction(index_, lod, kReverseTolerance * budget, &m.reference_on_output,
+                                        known.empty() ? nullptr : &known, true);
     m.reverse_bound = reverse.bound;
     m.reverse = std::max(m.reverse, reverse.lower);
     m.within = reverse.within;
@@ -356,18 +362,22 @@ class Reference {
     std::vector<std::uint32_t> over;  // triangles of `from` where a point over the budget was found
   };
   // The certified bound `from` → `to`, refined until it decides the budget where it can.
+  // `reverse` (reference → output): decides only, listing every reference triangle over, and takes the known
+  // bounds within the budget as they are. Output → reference is also the bound reported.
   Direction bound_direction(const SurfaceIndex& from, const SurfaceIndex& to, double budget,
                             const std::vector<char>* on_target, const std::vector<double>* known,
-                            bool list_over = false) const {
+                            bool reverse) const {
     const std::size_t measured = static_cast<std::size_t>(std::count(on_target->begin(), on_target->end(), 0));
     DistanceBoundOptions options{.tolerance = kBoundTolerance,
                                  .good_enough = kGoodEnough * budget,
                                  .give_up_above = budget,
-                                 .list_over = list_over,
-                                 .max_queries = kQueriesPerTriangle * measured + kBaseQueries,
+                                 .list_over = reverse,
+                                 .max_queries = (reverse ? kReverseQueriesPerTriangle : kForwardQueriesPerTriangle) * measured +
+                                                kBaseQueries,
                                  .threads = threads_,
                                  .on_target = on_target,
-                                 .known_upper = known};
+                                 .known_upper = known,
+                                 .settle_known = reverse};
     DistanceBound b = distance_bound(from, to, options);
     if (b.converged && b.upper > budget && b.lower < budget) {
       // Just under the budget: refine until the bound decides (the tolerance that separates them).
@@ -384,6 +394,50 @@ class Reference {
     d.within = !b.gave_up && (d.certified || (!b.converged && b.lower <= budget));
     d.over = std::move(b.over);
     return d;
+  }
+
+  // Per reference triangle, an upper bound on its distance to the output from the output triangles the guard
+  // attached its corners and centroid to: the distance to one triangle is convex, so over the reference
+  // triangle it is at most its largest at the corners; the smallest such over those triangles (-1: none).
+  std::vector<double> attached_bounds(const SurfaceIndex& lod, const std::vector<std::uint32_t>& sample_faces) {
+    const std::vector<Vec3d>& smp = samples();
+    const std::size_t nt = index_.indices.size() / 3, nf = lod.indices.size() / 3;
+    std::vector<double> known(nt, -1.0);
+    if (sample_faces.size() < smp.size()) return {};
+    std::vector<std::uint32_t> vertex_face(index_.positions.size(), kInvalidIndex), centroid_face(nt, kInvalidIndex);
+    for (std::size_t i = 0; i < smp.size(); ++i) {
+      const std::uint32_t o = origins_[i], f = sample_faces[i];
+      if (f >= nf) continue;
+      if (o & kCentroidOrigin) {
+        centroid_face[o & ~kCentroidOrigin] = f;
+      } else {
+        vertex_face[o] = f;
+      }
+    }
+    arena_.execute([&] {
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nt, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t t = r.begin(); t < r.end(); ++t) {
+          const std::uint32_t* c = &index_.indices[3 * t];
+          const std::array<std::uint32_t, 4> faces{vertex_face[c[0]], vertex_face[c[1]], vertex_face[c[2]], centroid_face[t]};
+          double best = std::numeric_limits<double>::infinity();
+          for (std::size_t k = 0; k < faces.size(); ++k) {
+            const std::uint32_t f = faces[k];
+            if (f == kInvalidIndex || std::find(faces.begin(), faces.begin() + k, f) != faces.begin() + k) continue;
+            const Vec3d& p = lod.positions[lod.indices[3 * std::size_t{f}]];
+            const Vec3d& q = lod.positions[lod.indices[3 * std::size_t{f} + 1]];
+            const Vec3d& w = lod.positions[lod.indices[3 * std::size_t{f} + 2]];
+            double worst = 0.0;
+            for (int j = 0; j < 3 && worst < best; ++j) {
+              const Vec3d& x = index_.positions[c[j]];
+              worst = std::max(worst, length(x - closest_point_on_triangle(x, p, q, w).point));
+            }
+            best = std::min(best, worst);
+          }
+          if (std::isfinite(best)) known[t] = best;
+        }
+      });
+    });
+    return known;
   }
 
   void suspect(const Vec3d& p) {
@@ -594,6 +648,7 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
   std::optional<SurfaceIndex> local_index;
   Reference reference(reference_index(options, reference_mesh, local_index), options.threads);
   std::vector<double> face_bounds;
+  std::vector<std::uint32_t> sample_faces;
   GuardReference guard{.bvh = &reference.bvh(),
                        .samples = reference.samples(),
                        .origins = &reference_mesh == &triangles ? std::span<const std::uint32_t>(reference.origins())
@@ -601,7 +656,8 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
                        .budget = budget,
                        .grid_spacing = kGridSpacing * budget,
                        .dense_regions = {},
-                       .face_bounds = &face_bounds};
+                       .face_bounds = &face_bounds,
+                       .sample_faces = &sample_faces};
   const double setup_ms = elapsed_ms(t0);
 
   // The guard holds its samples; a reference triangle whose samples pass can still rise over the budget
@@ -630,7 +686,8 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
     }
     t0 = std::chrono::steady_clock::now();
     const bool bounds_known = face_bounds.size() == result.mesh.triangle_count();
-    full = reference.measure(result.mesh, budget, bounds_known ? &face_bounds : nullptr);
+    full = reference.measure(result.mesh, budget, bounds_known ? &face_bounds : nullptr,
+                             bounds_known ? &sample_faces : nullptr);
     ++measured;
     if (full.within || !guarded || reruns == kGuardReruns) break;
     if (full.reverse_over.empty() && full.forward_over.empty()) break;

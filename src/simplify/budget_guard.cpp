@@ -101,11 +101,22 @@ double CollapseMesh::guarded_face_bound(const Vec3d& p, const Vec3d& q, const Ve
   return std::max(corners, kSampleReach * guard_budget_) + cover_radius(p, q, r) / steps + guard_rounding_;
 }
 
-void CollapseMesh::store_face_bounds() const {
-  if (guard_bounds_out_ == nullptr) return;
-  guard_bounds_out_->clear();
-  for (std::size_t f = 0; f < guard_face_bound_.size(); ++f) {
-    if (tri_[3 * f] != kInvalidIndex) guard_bounds_out_->push_back(guard_face_bound_[f]);
+void CollapseMesh::store_guard_outputs() const {
+  if (guard_bounds_out_ != nullptr) {
+    guard_bounds_out_->clear();
+    for (std::size_t f = 0; f < guard_face_bound_.size(); ++f) {
+      if (tri_[3 * f] != kInvalidIndex) guard_bounds_out_->push_back(guard_face_bound_[f]);
+    }
+  }
+  if (guard_sample_faces_out_ != nullptr) {
+    std::vector<std::uint32_t>& out = *guard_sample_faces_out_;
+    out.assign(guard_samples_.size(), kInvalidIndex);
+    std::uint32_t at = 0;  // output() keeps the alive faces in slot order
+    for (std::size_t f = 0; f < guard_head_.size(); ++f) {
+      if (tri_[3 * f] == kInvalidIndex) continue;
+      for (std::uint32_t smp = guard_head_[f]; smp != kInvalidIndex; smp = guard_next_[smp]) out[smp] = at;
+      ++at;
+    }
   }
 }
 
@@ -183,6 +194,7 @@ void CollapseMesh::setup_guard(const GuardReference& g, Parallel& parallel) {
   // otherwise each vertex measured, and each face within its farthest corner's distance plus its cover.
   guard_rounding_ = 2.0 * FLT_EPSILON * largest;
   guard_bounds_out_ = g.face_bounds;
+  guard_sample_faces_out_ = g.sample_faces;
   guard_vertex_bound_.assign(vx_.size(), 0.0);
   guard_face_bound_.assign(nf, 0.0);
   if (g.origins.size() != ns) {

@@ -179,6 +179,9 @@ struct GuardReference {
   // Filled at the end of the run where not null: per output triangle, in output order, an upper bound on its
   // distance to the reference (model units; +inf where none is known), from the points the guard tested.
   std::vector<double>* face_bounds = nullptr;
+  // Filled at the end where not null: per sample, the output triangle (output order) it is attached to, within
+  // the budget of it; kInvalidIndex where none.
+  std::vector<std::uint32_t>* sample_faces = nullptr;
 };
 
 inline double elapsed_ms(std::chrono::steady_clock::time_point since) {
@@ -373,8 +376,9 @@ class CollapseMesh {
   // The simplified mesh: alive faces in input order, referenced wedges and vertices compacted in id order,
   // unmoved vertices bit-identical to the input.
   Mesh output() const;
-  // Guarded runs whose GuardReference asked for them: writes the per-face bounds in output() order.
-  void store_face_bounds() const;
+  // Guarded runs whose GuardReference asked for them: writes the per-face bounds in output() order and the
+  // samples' faces.
+  void store_guard_outputs() const;
 
  private:
   // SeamStage::uv on: an edge with a complex endpoint whose other endpoint is not pinned (locked or frozen).
@@ -538,6 +542,7 @@ class CollapseMesh {
   std::vector<double> guard_face_bound_;    // per face: an upper bound on its distance (model units)
   double guard_rounding_ = 0.0;             // what rounding the output to float may add to a distance
   std::vector<double>* guard_bounds_out_ = nullptr;
+  std::vector<std::uint32_t>* guard_sample_faces_out_ = nullptr;
 };
 
 }  // namespace lodforge::collapse

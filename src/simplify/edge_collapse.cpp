@@ -837,7 +837,7 @@ void finish_result(const CollapseMesh& cm, double max_error, const StopRule& sto
                    SimplifyResult& result, bool stopped) {
   const auto t0 = std::chrono::steady_clock::now();
   result.mesh = cm.output();
-  cm.store_face_bounds();
+  cm.store_guard_outputs();
   result.triangles_after = cm.alive_faces();
   result.qem_error_abs = cm.model_error(max_error);
   result.qem_error_rel = cm.diagonal() > 0.0 ? result.qem_error_abs / cm.diagonal() : 0.0;

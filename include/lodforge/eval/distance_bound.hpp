@@ -51,6 +51,9 @@ struct DistanceBoundOptions {
   // Optional, one per triangle as above: an upper bound on that triangle's distance known already (+inf: none);
   // the result is never above it there, and refinement goes on below it only where that helps.
   const std::vector<double>* known_upper = nullptr;
+  // Triangles whose known_upper is at or below give_up_above are taken at that bound, not measured: for a
+  // caller that only decides against give_up_above (`lower` then covers the measured triangles only).
+  bool settle_known = false;
 };
 
 struct DistanceBound {

@@ -216,5 +216,36 @@ TEST(DistanceBound, ListsEveryTriangleOverTheThreshold) {
   EXPECT_TRUE(none.over.empty());
 }
 
+// Settling known bounds: triangles whose known bound is within the threshold are taken at it and not measured;
+// the others are bounded as before, and a known bound over the threshold settles nothing.
+TEST(DistanceBound, SettlesKnownBoundsWithinTheThreshold) {
+  const Mesh sphere = testing::make_uv_sphere(12, 16, 1.0f);
+  const Mesh fine = testing::make_uv_sphere(48, 64, 1.0f);
+  const SurfaceIndex target(fine);
+  const DistanceBound exact = distance_bound(sphere, target, {.tolerance = 0.01, .threads = 1});
+  ASSERT_TRUE(exact.converged);
+  const double threshold = 2.0 * exact.upper;
+  // Every triangle known within the threshold: nothing measured, the result is the largest known bound.
+  std::vector<double> known(sphere.triangle_count(), 1.5 * exact.upper);
+  known[3] = 1.7 * exact.upper;
+  DistanceBoundOptions o{.tolerance = 0.01, .give_up_above = threshold, .threads = 1, .known_upper = &known,
+                         .settle_known = true};
+  const DistanceBound all = distance_bound(sphere, target, o);
+  EXPECT_EQ(all.queries, 0u);
+  EXPECT_DOUBLE_EQ(all.upper, 1.7 * exact.upper);
+  EXPECT_FALSE(all.gave_up);
+  // Half of them unknown (-1) or known over the threshold: those are measured, the rest still settled.
+  for (std::size_t t = 0; t < known.size(); t += 2) known[t] = t % 4 == 0 ? -1.0 : 3.0 * exact.upper;
+  const DistanceBound half = distance_bound(sphere, target, o);
+  EXPECT_GT(half.queries, 0u);
+  EXPECT_LT(half.queries, exact.queries);
+  EXPECT_GE(half.upper, 1.7 * exact.upper);
+  EXPECT_LE(half.upper, threshold);
+  // Without settling, the same known bounds only cap: the result is the converged one.
+  o.settle_known = false;
+  EXPECT_DOUBLE_EQ(distance_bound(sphere, target, o).upper, distance_bound(sphere, target, {.tolerance = 0.01,
+                   .give_up_above = threshold, .threads = 1}).upper);
+}
+
 }  // namespace
 }  // namespace lodforge

@@ -494,5 +494,32 @@ TEST(ErrorBudget, AGuardedRunIsRepeatedWithAFineGridWhereTheForwardBoundFails) {
   EXPECT_EQ(r.budget.prefixes_measured, 2u);
 }
 
+// The reverse bound of a guarded run takes the reference triangles whose corners the guard kept near one
+// output triangle at that triangle's distance, unmeasured: it must still hold every point of the reference.
+// Checked on a lattice of 28 points per reference triangle, for each budget case (first LODs and chains).
+TEST(ErrorBudget, AGuardedRunsReverseBoundHoldsEveryReferencePoint) {
+  const BudgetCases all;
+  for (const BudgetCase& c : all.cases) {
+    const SimplifyResult r = simplify(*c.input, c.options);
+    ASSERT_TRUE(r.budget.within) << c.budget;
+    const Mesh& reference = c.options.budget_reference != nullptr ? *c.options.budget_reference : *c.input;
+    const TriangleBvh lod = make_triangle_bvh(r.mesh);
+    const std::vector<std::uint32_t> idx = triangle_vertex_indices(reference);
+    double worst = 0;
+    for (std::size_t t = 0; t < idx.size(); t += 3) {
+      const Vec3d a = to_double(reference.positions[idx[t]]), b = to_double(reference.positions[idx[t + 1]]),
+                  d = to_double(reference.positions[idx[t + 2]]);
+      constexpr int n = 6;
+      for (int i = 0; i <= n; ++i) {
+        for (int j = 0; i + j <= n; ++j) {
+          worst = std::max(worst, lod.closest_point(a + (b - a) * (double(i) / n) + (d - a) * (double(j) / n)).distance());
+        }
+      }
+    }
+    EXPECT_GE(r.budget.reverse_bound_abs, worst) << c.budget;
+    EXPECT_TRUE(std::isfinite(r.budget.reverse_bound_abs)) << c.budget;
+  }
+}
+
 }  // namespace
 }  // namespace lodforge
