@@ -256,6 +256,7 @@ MeshChain build_chain(const Mesh& source, const AssetClass& cls, std::size_t ass
   MeshChain chain;
   const std::size_t source_triangles = source.triangle_count();
   std::optional<SurfaceIndex> source_index;  // the chained LODs' budgets measure against it: built once
+  std::vector<std::uint32_t> attachments;    // the last LOD's SimplifyResult::reference_attachments
   for (std::size_t k = 0; k < cls.lods.size(); ++k) {
     if (stop.requested()) throw TimedOut{};  // the engines poll it too; this spares a doomed LOD's setup
     LodSpec spec = cls.lods[k];
@@ -280,6 +281,8 @@ MeshChain build_chain(const Mesh& source, const AssetClass& cls, std::size_t ass
       if (options.verifies_budget()) {
         if (!source_index) source_index.emplace(source);
         options.budget_reference_index = &*source_index;
+        // The previous LOD's guard kept every sample of the source near one of its triangles: a start.
+        if (!attachments.empty()) options.budget_attachments = &attachments;
       }
     }
     options.stop = stop;
@@ -287,6 +290,7 @@ MeshChain build_chain(const Mesh& source, const AssetClass& cls, std::size_t ass
     const auto t0 = Clock::now();
     SimplifyResult r = simplify_maybe_tiled(from, options);
     if (r.stop_reason == StopReason::stopped) throw TimedOut{};
+    attachments = std::move(r.reference_attachments);
     MeshLod lod;
     lod.mesh = std::move(r.mesh);
     lod.mesh.name = source.name;

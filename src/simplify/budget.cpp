@@ -653,6 +653,9 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
                        .samples = reference.samples(),
                        .origins = &reference_mesh == &triangles ? std::span<const std::uint32_t>(reference.origins())
                                                                : std::span<const std::uint32_t>(),
+                       .start_faces = &reference_mesh != &triangles && options.budget_attachments != nullptr
+                                          ? std::span<const std::uint32_t>(*options.budget_attachments)
+                                          : std::span<const std::uint32_t>(),
                        .budget = budget,
                        .grid_spacing = kGridSpacing * budget,
                        .dense_regions = {},
@@ -717,6 +720,7 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
   check.budget_abs = budget;
   check.guard_reruns = reruns;
   check.prefixes_measured = measured;
+  const bool engine_output = full.within;  // else backed off below
   if (!full.within) {
     // Bisection over prefixes [lo, hi): prefix lo holds (the input itself does), prefix hi does not. The
     // working mesh at lo is kept, so each step replays only the collapses between lo and the midpoint. Steps
@@ -826,6 +830,10 @@ SimplifyResult run_within_budget(LoggedEngine engine, const Mesh& triangles, con
     return result;
   }
 
+  if (guarded && engine_output && full.within && face_bounds.size() == result.mesh.triangle_count()) {
+    sample_faces.resize(std::min(sample_faces.size(), reference.samples().size()));  // lattice points dropped
+    result.reference_attachments = std::move(sample_faces);
+  }
   check.within = full.within;
   check.certified = full.certified;
   check.sampled_abs = full.sampled;

@@ -145,9 +145,13 @@ void CollapseMesh::setup_guard(const GuardReference& g, Parallel& parallel) {
   const std::size_t ns = g.samples.size();
   guard_samples_.resize(ns);
   std::vector<std::uint32_t> face_of(ns, kInvalidIndex);
-  if (g.origins.size() == ns) {
-    std::vector<std::uint32_t> slot_of(src_.face_count(), kInvalidIndex);
+  std::vector<std::uint32_t> slot_of;
+  const bool start_faces = g.origins.size() != ns && !g.start_faces.empty() && g.start_faces.size() <= ns;
+  if (g.origins.size() == ns || start_faces) {
+    slot_of.assign(src_.face_count(), kInvalidIndex);
     for (std::size_t f = 0; f < nf; ++f) slot_of[tri_source_[f]] = static_cast<std::uint32_t>(f);
+  }
+  if (g.origins.size() == ns) {
     for (std::size_t i = 0; i < ns; ++i) {
       const std::uint32_t o = g.origins[i];
       if (o & kCentroidOrigin) {
@@ -158,9 +162,22 @@ void CollapseMesh::setup_guard(const GuardReference& g, Parallel& parallel) {
       }
     }
   }
+  for (std::size_t i = 0; i < ns; ++i) guard_samples_[i] = (g.samples[i] - origin_) * inv;
+  if (start_faces) {
+    // Kept only where within the budget, as every attachment is. (Lattice points a rerun added have none.)
+    parallel.for_ranges(g.start_faces.size(), 4096, [&](std::size_t b, std::size_t e) {
+      for (std::size_t i = b; i < e; ++i) {
+        const std::uint32_t t = g.start_faces[i];
+        if (t >= slot_of.size() || slot_of[t] == kInvalidIndex) continue;
+        const std::uint32_t* c = &tri_[3 * std::size_t{slot_of[t]}];
+        if (distance_sq(guard_samples_[i], {vx_[c[0]].pos, vx_[c[1]].pos, vx_[c[2]].pos}) <= guard_budget2_) {
+          face_of[i] = slot_of[t];
+        }
+      }
+    });
+  }
   std::vector<std::size_t> unplaced;
   for (std::size_t i = 0; i < ns; ++i) {
-    guard_samples_[i] = (g.samples[i] - origin_) * inv;
     if (face_of[i] == kInvalidIndex && finite3(guard_samples_[i])) unplaced.push_back(i);
   }
   if (!unplaced.empty()) {

@@ -171,6 +171,9 @@ struct GuardReference {
   // Where the reference is the engine's input: per sample, its vertex, or its triangle | kCentroidOrigin (the
   // samples are then attached without a search). Empty otherwise.
   std::span<const std::uint32_t> origins;
+  // Otherwise, optionally: per sample, a face of the input (input order) to attach it to where it is within the
+  // budget of it (a previous LOD's attachments); the others are attached to their nearest face.
+  std::span<const std::uint32_t> start_faces;
   double budget = 0;
   double grid_spacing = 0;
   // Boxes (model units) where an earlier run's output had a point over the budget: new faces that reach into

@@ -195,6 +195,10 @@ struct SimplifyOptions {
   // budget_reference's surface index (eval/distance_bound.hpp), where the caller builds it once for several
   // simplify() calls against the same reference (the LODs of a chain); null: each call builds its own.
   const SurfaceIndex* budget_reference_index = nullptr;
+  // A previous LOD's SimplifyResult::reference_attachments, where this call simplifies that LOD against the
+  // same budget_reference: where the engine holds the budget as it runs, it starts from them instead of
+  // searching every reference sample's nearest face (each is checked, and searched for where not within).
+  const std::vector<std::uint32_t>* budget_attachments = nullptr;
   // Whether simplify() holds an error budget by measurement (verify_budget, and a budget set).
   bool verifies_budget() const { return verify_budget && (max_error_abs >= 0.0 || max_error_rel >= 0.0); }
 
@@ -297,6 +301,10 @@ struct SimplifyResult {
   double error_bound_abs = -1.0;
   double error_bound_rel = -1.0;
   BudgetCheck budget;
+  // Where an error budget was held by the engine as it ran and the output is its own (nothing backed off): per
+  // sample point of the reference (its vertices, then its triangles' centroids), the output triangle kept
+  // within the budget of it (kInvalidIndex: none). For the next LOD of a chain (budget_attachments).
+  std::vector<std::uint32_t> reference_attachments;
   StopReason stop_reason = StopReason::target_reached;
   struct Timings {
     double setup_ms = 0, initial_costs_ms = 0, collapse_ms = 0, output_ms = 0;

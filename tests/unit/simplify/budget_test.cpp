@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <tuple>
 #include <vector>
 
@@ -181,6 +182,52 @@ TEST(ErrorBudget, ASharedReferenceIndexGivesTheSameLod) {
   EXPECT_TRUE(shared.budget.within);
 }
 
+// A guarded LOD says which of its triangles it kept each sample of the reference near (its vertices, then its
+// triangles' centroids); the chain's next LOD starts from them. Each is within the budget of its sample; the
+// next LOD holds its budget with them, with none and with wrong ones (they are checked).
+TEST(ErrorBudget, ReferenceAttachmentsCarryAlongAChain) {
+  const Mesh sphere = make_bumpy_sphere(40, 60);
+  const double diag = compute_bounds(sphere).diagonal();
+  const SimplifyResult first = simplify(sphere, {.target_ratio = 0.001, .max_error_rel = 0.003});
+  ASSERT_TRUE(first.budget.within);
+  const std::vector<std::uint32_t> idx = triangle_vertex_indices(sphere);
+  const std::size_t nv = sphere.vertex_count(), nt = idx.size() / 3;
+  ASSERT_EQ(first.reference_attachments.size(), nv + nt);
+  const std::vector<std::uint32_t> lod_idx = triangle_vertex_indices(first.mesh);
+  auto distance_to = [&](const Vec3d& p, std::uint32_t t) {
+    EXPECT_LT(t, lod_idx.size() / 3);
+    if (t >= lod_idx.size() / 3) return std::numeric_limits<double>::infinity();
+    const Vec3d a = to_double(first.mesh.positions[lod_idx[3 * t]]), b = to_double(first.mesh.positions[lod_idx[3 * t + 1]]),
+                c = to_double(first.mesh.positions[lod_idx[3 * t + 2]]);
+    return length(p - closest_point_on_triangle(p, a, b, c).point);
+  };
+  double worst = 0;
+  for (std::size_t v = 0; v < nv; ++v) worst = std::max(worst, distance_to(to_double(sphere.positions[v]), first.reference_attachments[v]));
+  for (std::size_t t = 0; t < nt; ++t) {
+    const Vec3d g = (to_double(sphere.positions[idx[3 * t]]) + to_double(sphere.positions[idx[3 * t + 1]]) +
+                     to_double(sphere.positions[idx[3 * t + 2]])) * (1.0 / 3.0);
+    worst = std::max(worst, distance_to(g, first.reference_attachments[nv + t]));
+  }
+  EXPECT_LE(worst, 0.003 * diag);
+
+  SimplifyOptions next{.target_ratio = 0.001, .max_error_abs = 0.012 * diag};
+  next.budget_reference = &sphere;
+  const SimplifyResult plain = simplify(first.mesh, next);
+  next.budget_attachments = &first.reference_attachments;
+  const SimplifyResult started = simplify(first.mesh, next);
+  const std::vector<std::uint32_t> wrong(nv + nt, 0);  // all on triangle 0: within the budget of few samples
+  next.budget_attachments = &wrong;
+  const SimplifyResult checked = simplify(first.mesh, next);
+  for (const SimplifyResult* r : {&plain, &started, &checked}) {
+    EXPECT_TRUE(r->budget.within);
+    EXPECT_EQ(r->budget.collapses_undone, 0u);
+    EXPECT_LE(evaluate(sphere, r->mesh).hausdorff_rel(), 0.012 * (1 + kSamplingTolerance));
+    EXPECT_LT(r->triangles_after, first.triangles_after);
+  }
+  // The attachments only change which face each sample starts on: the LODs stay close in size.
+  EXPECT_NEAR(double(started.triangles_after), double(plain.triangles_after), 0.1 * double(plain.triangles_after));
+}
+
 TEST(ErrorBudget, PolychordOutputsAreMeasuredToo) {
   const Mesh grid = testing::make_grid(16, 16, true);
   Mesh bumpy = grid;
@@ -254,10 +301,12 @@ TEST(ErrorBudget, GuardedFaceBoundsHoldEveryPointOfTheirTriangle) {
       const collapse::GuardReference guard{.bvh = &bvh,
                                            .samples = samples,
                                            .origins = {},
+                                           .start_faces = {},
                                            .budget = budget * diag,
                                            .grid_spacing = 4.0 * budget * diag,
                                            .dense_regions = {},
-                                           .face_bounds = &bounds};
+                                           .face_bounds = &bounds,
+                                           .sample_faces = nullptr};
       const SimplifyOptions o{.target_ratio = 0.001, .max_error_rel = budget};
       const SimplifyResult r = collapse::run_edge_collapse(*input, o, {}, nullptr, &guard);
       ASSERT_EQ(bounds.size(), r.mesh.triangle_count()) << budget;
@@ -391,10 +440,12 @@ TEST(ErrorBudget, GuardedFacesInADenseRegionAreHeldEverywhere) {
     collapse::GuardReference guard{.bvh = &bvh,
                                    .samples = samples,
                                    .origins = {},
+                                   .start_faces = {},
                                    .budget = budget * diag,
                                    .grid_spacing = 4.0 * budget * diag,
                                    .dense_regions = {},
-                                   .face_bounds = &plain_bounds};
+                                   .face_bounds = &plain_bounds,
+                                   .sample_faces = nullptr};
     const SimplifyOptions o{.target_ratio = 0.001, .max_error_rel = budget};
     const SimplifyResult plain = collapse::run_edge_collapse(source, o, {}, nullptr, &guard);
     guard.dense_regions = std::span<const Bounds3>(&everywhere, 1);
