@@ -556,7 +556,7 @@ Evaluation CollapseMesh::evaluate(std::uint32_t u, std::uint32_t v, bool with_co
   if (!far_.empty()) {
     // A collapse that leaves an absorbed input point far from the new fan (a thin part shortened: the quadric
     // sees no error in moving along it) costs that distance: such parts go last, not first.
-    const std::array<double, 2> d2 = far_distances(u, v, ev.position);
+    const std::array<double, 2> d2 = far_distances(u, v, ev.position, ev.error);
     const double reach = std::max(d2[0], d2[1]);
     if (reach > ev.error) {
       ev.cost += (surface.weight + weight_floor_) * (reach - ev.error);
@@ -572,9 +572,11 @@ Evaluation CollapseMesh::evaluate(std::uint32_t u, std::uint32_t v, bool with_co
   return ev;
 }
 
-std::array<double, 2> CollapseMesh::far_distances(std::uint32_t u, std::uint32_t v, const Vec3d& x) const {
+std::array<double, 2> CollapseMesh::far_distances(std::uint32_t u, std::uint32_t v, const Vec3d& x,
+                                                  double enough) const {
   std::array<double, 2> best = {std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity()};
   const Vec3d points[2] = {far_[u], far_[v]};
+  bool done[2] = {false, false};
   for (const std::uint32_t w : {u, v}) {
     const std::uint32_t* fl = star(w);
     for (std::uint32_t i = 0; i < size_[w]; ++i) {
@@ -585,9 +587,12 @@ std::array<double, 2> CollapseMesh::far_distances(std::uint32_t u, std::uint32_t
       Vec3d c[3];
       for (int k = 0; k < 3; ++k) c[k] = t[k] == u || t[k] == v ? x : vx_[t[k]].pos;
       for (int j = 0; j < 2; ++j) {
+        if (done[j]) continue;
         const Vec3d q = closest_point_on_triangle(points[j], c[0], c[1], c[2]).point;
         best[j] = std::min(best[j], dot(points[j] - q, points[j] - q));
+        done[j] = best[j] <= enough;
       }
+      if (done[0] && done[1]) return best;
     }
   }
   for (double& b : best) {

@@ -328,7 +328,10 @@ class CollapseMesh {
   // The input's signed volume (model units³), from the working faces at setup; 0 in mode none.
   double input_volume() const { return input_volume_; }
   // Squared distances of the input points u and v track (far_) to the fan that collapsing (u, v) to x leaves.
-  std::array<double, 2> far_distances(std::uint32_t u, std::uint32_t v, const Vec3d& x) const;
+  // A point found within `enough` of a face is not measured further (its distance is then some value within
+  // `enough`, not the least): the callers that compare against a threshold need no more.
+  std::array<double, 2> far_distances(std::uint32_t u, std::uint32_t v, const Vec3d& x,
+                                      double enough = -1.0) const;
 
   // Hints that v's record will be read soon. The greedy order jumps around the mesh, so most records are
   // cold; asking for a whole ring at once lets the memory system fetch them in parallel.
