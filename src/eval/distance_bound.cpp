@@ -117,6 +117,36 @@ double corner_bound(const Node& n, const SurfaceIndex& target, std::span<const s
   return best;
 }
 
+// Corners whose closest target triangles differ (a node across an edge or a vertex of the target): the node
+// is cut into pieces, one per corner, each held to its corner's triangle. An edge whose ends name different
+// triangles is cut where their distances cross (estimated linearly from the ends); where all three differ,
+// the pieces also meet at the centroid. Each piece lies in the hull of its cut points and corner, and the
+// distance to one triangle is convex, so the piece is within that triangle's largest distance at them.
+double piecewise_bound(const Node& n, const SurfaceIndex& target) {
+  const std::uint32_t f[3] = {n.h[0].triangle, n.h[1].triangle, n.h[2].triangle};
+  if (f[0] == kInvalidIndex || f[1] == kInvalidIndex || f[2] == kInvalidIndex) return std::numeric_limits<double>::infinity();
+  auto distance = [&](const Vec3d& x, std::uint32_t t) {
+    const auto [a, b, c] = target.bvh.triangle(t);
+    return length(x - closest_point_on_triangle(x, a, b, c).point);
+  };
+  double worst = std::max({n.h[0].distance, n.h[1].distance, n.h[2].distance});
+  for (int i = 0; i < 3; ++i) {
+    const int j = (i + 1) % 3;
+    if (f[i] == f[j]) continue;
+    // The difference of the two distances, negative at corner i (its own triangle is the closer), positive at j.
+    const double at_i = n.h[i].distance - distance(n.p[i], f[j]);
+    const double at_j = distance(n.p[j], f[i]) - n.h[j].distance;
+    const double s = at_j - at_i > 0 ? std::clamp(-at_i / (at_j - at_i), 0.0, 1.0) : 0.5;
+    const Vec3d m = n.p[i] + (n.p[j] - n.p[i]) * s;
+    worst = std::max({worst, distance(m, f[i]), distance(m, f[j])});
+  }
+  if (f[0] != f[1] && f[1] != f[2] && f[0] != f[2]) {
+    const Vec3d g = (n.p[0] + n.p[1] + n.p[2]) * (1.0 / 3.0);
+    worst = std::max({worst, distance(g, f[0]), distance(g, f[1]), distance(g, f[2])});
+  }
+  return worst;
+}
+
 // A node lying on a nearly flat region of the target made of many triangles (a CAD face tessellated into
 // slivers, or a small patch of a smooth surface): walk the target's triangles from the one under the centroid
 // across the edges that reach into the node, projected onto that triangle's plane P, as long as their corners
@@ -257,6 +287,7 @@ Bound bound(const Node& n, const SurfaceIndex& target, double flat_slack, double
   // lying on a flat part of the target across its edges).
   const std::uint32_t candidates[] = {n.h[0].triangle, n.h[1].triangle, n.h[2].triangle, hg.triangle};
   upper = std::min(upper, corner_bound(n, target, candidates));
+  upper = std::min(upper, piecewise_bound(n, target));
   if (upper > flat_slack && hg.distance <= plane_tolerance && hg.triangle != kInvalidIndex) {
     const auto [a, b, c] = target.bvh.triangle(hg.triangle);
     const Vec3d from = closest_point_on_triangle(g, a, b, c).point;

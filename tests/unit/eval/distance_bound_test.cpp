@@ -247,5 +247,43 @@ TEST(DistanceBound, SettlesKnownBoundsWithinTheThreshold) {
                    .give_up_above = threshold, .threads = 1}).upper);
 }
 
+// A triangle hovering across a crease of the target, its corners nearest to different target triangles: no
+// single triangle holds it and the crease is far from flat, so a Lipschitz bound would split it round after
+// round. Cut where the two triangles' distances cross, it is bounded in the first round, and truly.
+TEST(DistanceBound, ANodeAcrossACreaseIsBoundedWithoutSplitting) {
+  Mesh crease;  // a flat triangle and one rising at 27 degrees, sharing the edge x = 0
+  for (const Vec3f& p : {Vec3f{{0, -2, 0}}, Vec3f{{0, 2, 0}}, Vec3f{{-2, 0, 0}}, Vec3f{{2, 0, 1}}}) {
+    crease.add_vertex_with_wedge(p);
+  }
+  crease.add_face({0, 1, 2});
+  crease.add_face({1, 0, 3});
+  Mesh over;
+  for (const Vec3f& p : {Vec3f{{-0.5f, -0.3f, 0.2f}}, Vec3f{{0.5f, -0.3f, 0.45f}}, Vec3f{{0.0f, 0.4f, 0.3f}}}) {
+    over.add_vertex_with_wedge(p);
+  }
+  over.add_face({0, 1, 2});
+  // The largest distance by brute force, on a fine lattice of the triangle.
+  const SurfaceIndex target(crease);
+  const Vec3d c[3] = {to_double(over.positions[0]), to_double(over.positions[1]), to_double(over.positions[2])};
+  double truth = 0;
+  constexpr int kSteps = 400;
+  for (int i = 0; i <= kSteps; ++i) {
+    for (int j = 0; i + j <= kSteps; ++j) {
+      const Vec3d x = c[0] + (c[1] - c[0]) * (double(i) / kSteps) + (c[2] - c[0]) * (double(j) / kSteps);
+      double d = INFINITY;
+      for (std::uint32_t t = 0; t < 2; ++t) {
+        const auto [a, b, e] = target.bvh.triangle(t);
+        d = std::min(d, length(x - closest_point_on_triangle(x, a, b, e).point));
+      }
+      truth = std::max(truth, d);
+    }
+  }
+  const DistanceBound b = distance_bound(over, target, {.tolerance = 0.0, .good_enough = 1.02 * truth});
+  EXPECT_GE(b.upper, truth);
+  EXPECT_LE(b.upper, 1.02 * truth);
+  EXPECT_EQ(b.rounds, 1);
+  EXPECT_TRUE(b.converged);
+}
+
 }  // namespace
 }  // namespace lodforge
