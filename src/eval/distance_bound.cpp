@@ -96,12 +96,18 @@ double flat_pair_slack(const SurfaceIndex& target, std::uint32_t t, int k, std::
 
 // The smallest corner bound over the candidate target triangles and the flat convex pairs they form with their
 // neighbours: a point Σ λᵢ vᵢ of the node is within Σ λᵢ |vᵢ − cᵢ| of Σ λᵢ cᵢ, cᵢ a closest point of a convex set.
-double corner_bound(const Node& n, const SurfaceIndex& target, std::span<const std::uint32_t> candidates) {
+// Also gives, per valid candidate, its squared corner distances (corner_d2, one per candidate).
+double corner_bound(const Node& n, const SurfaceIndex& target, std::span<const std::uint32_t> candidates,
+                    std::span<std::array<double, 3>> corner_d2) {
   double best = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < candidates.size(); ++i) {
     const std::uint32_t t = candidates[i];
-    if (t == kInvalidIndex || std::find(candidates.begin(), candidates.begin() + i, t) != candidates.begin() + i) continue;
-    const std::array<double, 3> dt = corner_distances(n, target, t);
+    if (t == kInvalidIndex) continue;
+    if (const auto seen = std::find(candidates.begin(), candidates.begin() + i, t); seen != candidates.begin() + i) {
+      corner_d2[i] = corner_d2[seen - candidates.begin()];
+      continue;
+    }
+    const std::array<double, 3>& dt = corner_d2[i] = corner_distances(n, target, t);
     best = std::min(best, std::sqrt(std::max({dt[0], dt[1], dt[2]})));
     for (int k = 0; k < 3; ++k) {
       const std::uint32_t u = target.bvh.neighbor(t, k);
@@ -122,7 +128,8 @@ double corner_bound(const Node& n, const SurfaceIndex& target, std::span<const s
 // triangles is cut where their distances cross (estimated linearly from the ends); where all three differ,
 // the pieces also meet at the centroid. Each piece lies in the hull of its cut points and corner, and the
 // distance to one triangle is convex, so the piece is within that triangle's largest distance at them.
-double piecewise_bound(const Node& n, const SurfaceIndex& target) {
+// corner_d2[m][k]: corner k's squared distance to corner m's triangle (corner_bound's).
+double piecewise_bound(const Node& n, const SurfaceIndex& target, std::span<const std::array<double, 3>, 3> corner_d2) {
   const std::uint32_t f[3] = {n.h[0].triangle, n.h[1].triangle, n.h[2].triangle};
   if (f[0] == kInvalidIndex || f[1] == kInvalidIndex || f[2] == kInvalidIndex) return std::numeric_limits<double>::infinity();
   auto distance = [&](const Vec3d& x, std::uint32_t t) {
@@ -134,8 +141,8 @@ double piecewise_bound(const Node& n, const SurfaceIndex& target) {
     const int j = (i + 1) % 3;
     if (f[i] == f[j]) continue;
     // The difference of the two distances, negative at corner i (its own triangle is the closer), positive at j.
-    const double at_i = n.h[i].distance - distance(n.p[i], f[j]);
-    const double at_j = distance(n.p[j], f[i]) - n.h[j].distance;
+    const double at_i = n.h[i].distance - std::sqrt(corner_d2[j][i]);
+    const double at_j = std::sqrt(corner_d2[i][j]) - n.h[j].distance;
     const double s = at_j - at_i > 0 ? std::clamp(-at_i / (at_j - at_i), 0.0, 1.0) : 0.5;
     const Vec3d m = n.p[i] + (n.p[j] - n.p[i]) * s;
     worst = std::max({worst, distance(m, f[i]), distance(m, f[j])});
@@ -286,8 +293,9 @@ Bound bound(const Node& n, const SurfaceIndex& target, double flat_slack, double
   // named by a corner or the centroid as the common one, alone and with its flat neighbours (a LOD triangle
   // lying on a flat part of the target across its edges).
   const std::uint32_t candidates[] = {n.h[0].triangle, n.h[1].triangle, n.h[2].triangle, hg.triangle};
-  upper = std::min(upper, corner_bound(n, target, candidates));
-  upper = std::min(upper, piecewise_bound(n, target));
+  std::array<double, 3> corner_d2[std::size(candidates)];
+  upper = std::min(upper, corner_bound(n, target, candidates, corner_d2));
+  upper = std::min(upper, piecewise_bound(n, target, std::span(corner_d2).first<3>()));
   if (upper > flat_slack && hg.distance <= plane_tolerance && hg.triangle != kInvalidIndex) {
     const auto [a, b, c] = target.bvh.triangle(hg.triangle);
     const Vec3d from = closest_point_on_triangle(g, a, b, c).point;
