@@ -378,6 +378,12 @@ class CollapseMesh {
   bool face_alive(std::uint32_t f) const { return tri_[3 * std::size_t{f}] != kInvalidIndex; }
   std::size_t face_slots() const { return tri_.size() / 3; }
   std::uint32_t face_vertex(std::uint32_t f, int corner) const { return tri_[3 * std::size_t{f} + corner]; }
+  // Cache hints for sampling engines, which read scattered faces and vertices.
+  void prefetch_face(std::uint32_t f) const { __builtin_prefetch(&tri_[3 * std::size_t{f}]); }
+  void prefetch_vertex(std::uint32_t v) const {
+    __builtin_prefetch(&vx_[v]);
+    __builtin_prefetch(&kind_[v]);
+  }
 
   // The simplified mesh: alive faces in input order, referenced wedges and vertices compacted in id order,
   // unmoved vertices bit-identical to the input.

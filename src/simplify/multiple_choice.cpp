@@ -10,8 +10,9 @@
 // Parallel rounds: a round runs G steps at once. Each step draws its k samples with a
 // counter-based RNG keyed by (seed, round, step, sample), so what is drawn never depends on threads; the steps
 // are evaluated and checked in parallel against the mesh as it was at the start of the round; then, in order
-// of (cost, u, v), each step's winner is committed unless its neighbourhood touches one already committed this
-// round (the check stays valid for disjoint neighbourhoods).
+// of (cost, u, v), each step's winner is committed unless one of its endpoints is in the closed ring of a collapse
+// already committed this round. That is exactly when its check and evaluation still hold: they read the faces
+// around its two endpoints, and a collapse changes only faces that hold one of its own endpoints.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -26,6 +27,9 @@ namespace {
 // Steps per round: a small fraction of the faces, so that the winners rarely conflict and each round still
 // gives the cores enough work.
 constexpr std::size_t kStepDivisor = 64;
+// The sampling array is compacted once this share of it is dead faces: a dead sample is a lost choice, and the
+// quality of the winner depends on how many live choices a step had.
+constexpr double kMaxDeadShare = 0.1;
 constexpr std::size_t kMaxSteps = 2048;
 // Rounds in a row without a single commit before giving up: with random samples "no valid collapse" and
 // "over budget" are statistical verdicts.
@@ -38,10 +42,14 @@ std::uint64_t splitmix64(std::uint64_t x) {
   return x ^ (x >> 31);
 }
 
-// Counter-based: the sample's random bits are a pure function of its coordinates.
-std::uint64_t sample_bits(std::uint64_t seed, std::uint64_t round, std::uint64_t step, std::uint64_t sample) {
-  return splitmix64(splitmix64(splitmix64(seed) ^ round) ^ ((step << 16) | sample));
+// Counter-based: the sample's random bits are a pure function of (seed, round, step, sample).
+std::uint64_t round_key(std::uint64_t seed, std::uint64_t round) { return splitmix64(splitmix64(seed) ^ round); }
+std::uint64_t sample_bits(std::uint64_t key, std::uint64_t step, std::uint64_t sample) {
+  return splitmix64(key ^ ((step << 16) | sample));
 }
+
+// Uniform in [0, n) from 32 random bits, without a division.
+std::uint32_t below(std::uint64_t bits32, std::size_t n) { return static_cast<std::uint32_t>((bits32 * n) >> 32); }
 
 struct Winner {
   bool found = false;
@@ -74,17 +82,14 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
   result.timings.setup_ms = elapsed_ms(t0);
 
   t0 = std::chrono::steady_clock::now();
-  std::vector<std::uint32_t> faces;  // alive faces to sample from; rebuilt when half of it is dead
-  auto rebuild_faces = [&] {
-    faces.clear();
-    for (std::uint32_t f = 0; f < cm.face_slots(); ++f) {
-      if (cm.face_alive(f)) faces.push_back(f);
-    }
-  };
-  rebuild_faces();
+  std::vector<std::uint32_t> faces;  // alive faces to sample from (and some dead ones), in id order
+  for (std::uint32_t f = 0; f < cm.face_slots(); ++f) {
+    if (cm.face_alive(f)) faces.push_back(f);
+  }
   tbb::enumerable_thread_specific<Scratch> scratch;
   Scratch main_scratch;
   tbb::enumerable_thread_specific<std::vector<Sample>> sample_scratch;
+  tbb::enumerable_thread_specific<std::vector<std::uint32_t>> drawn_scratch;
   std::vector<Winner> winners;
   std::vector<std::uint32_t> order;
   std::vector<std::uint32_t> mark(cm.vertex_count(), 0);
@@ -108,7 +113,10 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
       stopped = true;
       break;
     }
-    if (faces.size() > 2 * cm.alive_faces() + 64) rebuild_faces();
+    if (static_cast<double>(faces.size()) * (1.0 - kMaxDeadShare) > static_cast<double>(cm.alive_faces()) + 64) {
+      std::erase_if(faces, [&](std::uint32_t f) { return !cm.face_alive(f); });
+    }
+    const std::uint64_t key = round_key(options.seed, round);
     const std::size_t remaining = cm.alive_faces() - target;
     const std::size_t steps =
         std::min(std::clamp<std::size_t>(cm.alive_faces() / kStepDivisor, 1, kMaxSteps), (remaining + 1) / 2);
@@ -116,14 +124,38 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
     parallel.for_ranges(steps, 4, [&](std::size_t b, std::size_t e) {
       Scratch& s = scratch.local();
       std::vector<Sample>& samples = sample_scratch.local();
+      std::vector<std::uint32_t>& drawn = drawn_scratch.local();
       for (std::size_t g = b; g < e; ++g) {
         samples.clear();
         Winner& w = winners[g];
+        // The samples are scattered over the mesh: ask for all their faces, then all their vertices, before
+        // reading any, so that the cache misses overlap instead of following one another.
+        drawn.clear();
         for (std::size_t i = 0; i < k; ++i) {
-          const std::uint64_t r = sample_bits(options.seed, round, g, i);
-          const std::uint32_t f = faces[(r & 0xffffffffu) % faces.size()];
-          if (!cm.face_alive(f)) continue;
-          const int j = static_cast<int>((r >> 32) % 3);
+          const std::uint64_t r = sample_bits(key, g, i);
+          const std::uint32_t at = below(r & 0xffffffffu, faces.size());
+          __builtin_prefetch(&faces[at]);
+          drawn.push_back(at);
+          drawn.push_back(static_cast<std::uint32_t>((r >> 32) % 3));
+        }
+        for (std::size_t i = 0; i < k; ++i) {
+          drawn[2 * i] = faces[drawn[2 * i]];
+          cm.prefetch_face(drawn[2 * i]);
+        }
+        for (std::size_t i = 0; i < k; ++i) {
+          const std::uint32_t f = drawn[2 * i];
+          if (!cm.face_alive(f)) {
+            drawn[2 * i] = kInvalidIndex;
+            continue;
+          }
+          const int j = static_cast<int>(drawn[2 * i + 1]);
+          cm.prefetch_vertex(cm.face_vertex(f, j));
+          cm.prefetch_vertex(cm.face_vertex(f, (j + 1) % 3));
+        }
+        for (std::size_t i = 0; i < k; ++i) {
+          const std::uint32_t f = drawn[2 * i];
+          if (f == kInvalidIndex) continue;
+          const int j = static_cast<int>(drawn[2 * i + 1]);
           std::uint32_t u = cm.face_vertex(f, j), v = cm.face_vertex(f, (j + 1) % 3);
           if (u > v) std::swap(u, v);
           if (cm.rule(u, v) == EdgeRule::forbidden) continue;
@@ -176,9 +208,7 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
     for (std::uint32_t g : order) {
       if (stop.reached(cm.alive_faces())) break;
       const Winner& w = winners[g];
-      bool conflict = false;
-      cm.for_each_closed_ring_vertex(w.u, w.v, [&](std::uint32_t x) { conflict = conflict || mark[x] == stamp; });
-      if (conflict) continue;
+      if (mark[w.u] == stamp || mark[w.v] == stamp) continue;  // next to a commit: its check may be stale
       if (cm.removes_last_material(w.check)) {  // counts only fall: never valid again
         ++result.vetoes[Veto::seam];
         continue;

@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "attribute_fixtures.hpp"
+#include "engines.hpp"
 #include "lodforge/core/validate.hpp"
 #include "lodforge/eval/eval.hpp"
 #include "lodforge/simplify/simplify.hpp"
@@ -76,6 +78,37 @@ TEST(MultipleChoice, RespectsLocksAndBudget) {
   const SimplifyResult rb = simplify(make_bumpy_sphere(40, 60), b);
   EXPECT_EQ(rb.stop_reason, StopReason::error_budget);
   EXPECT_LE(rb.qem_error_rel, 1e-3);
+}
+
+// A round checks its winners against the mesh as the round found it and commits those whose endpoints lie
+// outside the closed rings of the commits before them. Then every commit must pass its check on the mesh as it
+// is at that point, and replaying the log one collapse at a time must rebuild the same mesh.
+void expect_log_replays_sequentially(const Mesh& input, const SimplifyOptions& o) {
+  std::vector<collapse::CollapseRecord> log;
+  const SimplifyResult r = collapse::run_multiple_choice(input, o, {}, &log);
+  ASSERT_GT(log.size(), 100u);
+  collapse::Parallel parallel(1);
+  collapse::CollapseMesh cm(input, o, parallel);
+  collapse::Scratch scratch;
+  std::size_t refused = 0;
+  for (const collapse::CollapseRecord& rec : log) {
+    while (cm.stage() < rec.stage && cm.relax()) {
+    }
+    const collapse::Check c = cm.check(rec.u, rec.v, rec.position, scratch);
+    if (!c.ok()) {
+      ++refused;
+      continue;
+    }
+    cm.commit(c, rec.position, scratch);
+  }
+  EXPECT_EQ(refused, 0u);
+  EXPECT_TRUE(cm.output() == r.mesh);
+}
+
+TEST(MultipleChoice, EveryCommitHoldsOnTheMeshItIsMadeOn) {
+  expect_log_replays_sequentially(make_bumpy_sphere(50, 80), mc(0.02, 3, 2));
+  // Attribute seams and wedges, and a seam stage relaxed on the way down.
+  expect_log_replays_sequentially(attribute_test::make_charted_cube(12), mc(0.02, 5, 2));
 }
 
 TEST(MultipleChoice, TetrahedronStops) {
