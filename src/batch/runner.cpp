@@ -14,7 +14,8 @@
 // bytes (an asset's estimated footprint), and one oversized asset must still be able to run alone. The gate is
 // opened from the serial report node each time an asset finishes, so no thread ever blocks waiting for memory.
 //
-// Determinism: each asset's outputs depend only on its file, its class and the config; the simplifier and eval
+// Determinism: each asset's outputs depend only on its file, its class and the config (and the memory limit, for
+// an asset estimated over the budget: its LODs are tiled to fit); the simplifier and eval
 // give identical results for any thread count; records are collected by library index, not completion order.
 #include "lodforge/batch/runner.hpp"
 
@@ -147,12 +148,14 @@ struct MeshLod {
   SeamStage seam_stage = SeamStage::strict;
   double seconds = 0;
   std::size_t conservative_refused = 0;  // conservative LODs: collapses the nesting rule refused
+  // The asset was over the run's memory budget: the tile size this LOD was cut into to fit it (0: it ran
+  // untiled), or why it could not be and ran over the budget.
+  std::size_t memory_tile_triangles = 0;
+  std::string memory_over{};
 };
 using MeshChain = std::vector<MeshLod>;
 
-std::size_t mesh_bytes(const Mesh& m) {
-  return m.positions.size() * 12 + m.wedge_count() * 48 + m.corner_count() * 4 + m.face_count() * 12;
-}
+using tiling::mesh_bytes;
 
 // Duplicate meshes (same content, class and asset context) share one chain. The first asset to need a chain
 // builds it inside tbb::collaborative_call_once, so a duplicate arriving meanwhile joins that work instead of
@@ -247,12 +250,36 @@ unsigned threads_for(std::size_t triangles, unsigned jobs) {
   return triangles < kParallelTriangles ? 1 : jobs;
 }
 
+// An asset over the run's memory budget runs alone; each of its simplifications is planned against what is left
+// of the budget (`limit`) once the meshes it holds besides the input (`held`) are counted, and tiled where an
+// untiled run would not fit. A plan that cannot fit either says why, and the run goes on untiled.
+void fit_memory(const Mesh& from, std::optional<std::uint64_t> limit, std::uint64_t held, SimplifyOptions& options,
+                MeshLod& lod) {
+  if (!limit) return;
+  const std::size_t left = *limit > held ? static_cast<std::size_t>(*limit - held) : 0;
+  const tiling::MemoryPlan plan = tiling::plan_memory(from, options, left, std::max(options.threads, 1u));
+  if (plan.force_tiling) {
+    options.tiling = TilingMode::on;
+    options.tile_triangles = plan.tile_triangles;
+    lod.memory_tile_triangles = plan.tile_triangles;
+  } else if (!plan.fits) {
+    const char* why = tiling::why_not_tileable(options);
+    lod.memory_over = "about " + std::to_string(plan.untiled_bytes >> 20) + " MiB untiled, over the " +
+                      std::to_string(left >> 20) + " MiB left of the memory budget, and " +
+                      (why != nullptr ? std::string(why) : std::string("tiles small enough would not fit either")) +
+                      ": ran untiled";
+  }
+}
+
 // One mesh's chain. Ratios are of the mesh's own triangles; a triangle-count target is the asset's, shared
 // among its meshes by their triangle counts; error targets are relative to the asset's diagonal.
 // `expire` (testing aid, null normally): set just before the first simplify() call, so that only the engine's
 // own polling of `stop` (which reads it) can time the asset out.
+// `memory_limit` (none: no limit) and `held`: as fit_memory(), `held` counting what the asset holds besides this
+// mesh.
 MeshChain build_chain(const Mesh& source, const AssetClass& cls, std::size_t asset_triangles, double asset_diagonal,
-                      unsigned jobs, const StopRequest& stop, std::atomic<bool>* expire = nullptr) {
+                      unsigned jobs, const StopRequest& stop, std::optional<std::uint64_t> memory_limit = {},
+                      std::uint64_t held = 0, std::atomic<bool>* expire = nullptr) {
   MeshChain chain;
   const std::size_t source_triangles = source.triangle_count();
   std::optional<SurfaceIndex> source_index;  // the chained LODs' budgets measure against it: built once
@@ -286,12 +313,15 @@ MeshChain build_chain(const Mesh& source, const AssetClass& cls, std::size_t ass
       }
     }
     options.stop = stop;
+    MeshLod lod;
+    std::uint64_t chain_bytes = chained ? mesh_bytes(source) : 0;  // `from` itself is the plan's input
+    for (std::size_t j = 0; j + (chained ? 1 : 0) < k; ++j) chain_bytes += mesh_bytes(chain[j].mesh);
+    fit_memory(from, memory_limit, held + chain_bytes, options, lod);
     if (expire != nullptr) expire->store(true);
     const auto t0 = Clock::now();
     SimplifyResult r = simplify_maybe_tiled(from, options);
     if (r.stop_reason == StopReason::stopped) throw TimedOut{};
     attachments = std::move(r.reference_attachments);
-    MeshLod lod;
     lod.mesh = std::move(r.mesh);
     lod.mesh.name = source.name;
     lod.error_bound_abs = r.budget.verified ? r.budget.bound_abs : spent + r.qem_error_abs;
@@ -308,7 +338,8 @@ MeshChain build_chain(const Mesh& source, const AssetClass& cls, std::size_t ass
 // One mesh's collision and occluder LODs (the class's `conservative` entries, in order), each built from the
 // source. Targets are shared among the asset's meshes as in build_chain. A failure names the entry.
 std::vector<MeshLod> build_conservative(const Mesh& source, const AssetClass& cls, std::size_t asset_triangles,
-                                        double asset_diagonal, unsigned jobs, const StopRequest& stop) {
+                                        double asset_diagonal, unsigned jobs, const StopRequest& stop,
+                                        std::optional<std::uint64_t> memory_limit = {}, std::uint64_t held = 0) {
   std::vector<MeshLod> out;
   const std::size_t source_triangles = source.triangle_count();
   for (ConservativeSpec spec : cls.conservative) {
@@ -323,6 +354,10 @@ std::vector<MeshLod> build_conservative(const Mesh& source, const AssetClass& cl
         LodInput{.source_triangles = source_triangles, .source_diagonal = asset_diagonal, .accumulated_error_abs = 0});
     options.threads = threads_for(source_triangles, jobs);
     options.stop = stop;
+    MeshLod lod;
+    std::uint64_t built_bytes = held;
+    for (const MeshLod& l : out) built_bytes += mesh_bytes(l.mesh);
+    fit_memory(source, memory_limit, built_bytes, options, lod);
     const auto t0 = Clock::now();
     std::optional<SimplifyResult> r;
     try {
@@ -331,7 +366,6 @@ std::vector<MeshLod> build_conservative(const Mesh& source, const AssetClass& cl
       throw std::runtime_error(std::string("the ") + conservative_kind_name(spec.kind) + " LOD: " + e.what());
     }
     if (r->stop_reason == StopReason::stopped) throw TimedOut{};
-    MeshLod lod;
     lod.mesh = std::move(r->mesh);
     lod.mesh.name = source.name;
     lod.error_bound_abs = r->budget.verified ? r->budget.bound_abs : r->qem_error_abs;
@@ -652,11 +686,25 @@ bool is_gltf(io::Format f) {
 
 // ---- the pipeline ---------------------------------------------------------------------------------------------
 
+// A LOD of an asset over the memory budget: the tile size it was cut into (the largest of its meshes') and, once
+// per asset, a warning where a mesh could not be fitted.
+void note_memory(const MeshLod& built, const std::string& what, std::size_t& tile_triangles, Json& record) {
+  tile_triangles = std::max(tile_triangles, built.memory_tile_triangles);
+  if (built.memory_over.empty()) return;
+  record["warnings"].push_back(what + ": " + built.memory_over);
+}
+
 class Pipeline {
  public:
+  // `asset_budget`: the memory the assets in flight share (an asset estimated over it runs alone, and tiled).
   Pipeline(const BatchConfig& config, const RunOptions& options, const Cache& cache, unsigned jobs,
-           std::uint64_t chain_cache_bytes)
-      : config_(config), options_(options), cache_(cache), jobs_(jobs), chains_(chain_cache_bytes) {
+           std::uint64_t chain_cache_bytes, std::uint64_t asset_budget)
+      : config_(config),
+        options_(options),
+        cache_(cache),
+        jobs_(jobs),
+        asset_budget_(asset_budget),
+        chains_(chain_cache_bytes) {
     for (const AssetClass& cls : config.classes) class_json_[&cls] = effective_class_json(config, cls);
   }
 
@@ -778,6 +826,12 @@ class Pipeline {
       job.terrain.reset();
       return;
     }
+    // Over the budget, the asset runs alone: its simplifications are fitted to the budget (tiled where needed).
+    const std::optional<std::uint64_t> memory_limit =
+        job.footprint > asset_budget_ ? std::optional(asset_budget_) : std::nullopt;
+    std::uint64_t asset_bytes = 0;
+    for (const Mesh& mesh : job.asset.meshes) asset_bytes += mesh_bytes(mesh);
+    std::uint64_t chains_bytes = 0;  // the chains built so far
     for (const Mesh& mesh : job.asset.meshes) {
       if (mesh.triangle_count() == 0) {  // e.g. a glTF mesh of lines only: its LODs are itself
         auto chain = std::make_shared<MeshChain>();
@@ -792,9 +846,12 @@ class Pipeline {
       key.bytes(mesh_content_hash(mesh)).bytes(job.cls->name).u64(job.triangles);
       key.u64(std::bit_cast<std::uint64_t>(diagonal));
       std::atomic<bool>* expire = job.path == options_.expire_in_simplify ? &job.expired : nullptr;
+      const std::uint64_t held = asset_bytes - mesh_bytes(mesh) + chains_bytes;
       job.chains.push_back(chains_.get(key.hex(), [&] {
-        return build_chain(mesh, *job.cls, job.triangles, diagonal, jobs_, job.stop_request(), expire);
+        return build_chain(mesh, *job.cls, job.triangles, diagonal, jobs_, job.stop_request(), memory_limit, held,
+                           expire);
       }));
+      for (const MeshLod& l : *job.chains.back()) chains_bytes += mesh_bytes(l.mesh);
     }
     if (job.cls->conservative.empty()) return;
     for (std::size_t m = 0; m < job.asset.meshes.size(); ++m) {
@@ -806,8 +863,12 @@ class Pipeline {
         continue;
       }
       const double diagonal = job.diagonal / io::world_scale(job.asset, m);
-      job.conservative_built.push_back(
-          build_conservative(mesh, *job.cls, job.triangles, diagonal, jobs_, job.stop_request()));
+      std::uint64_t held = asset_bytes - mesh_bytes(mesh) + chains_bytes;
+      for (const std::vector<MeshLod>& built : job.conservative_built) {
+        for (const MeshLod& l : built) held += mesh_bytes(l.mesh);
+      }
+      job.conservative_built.push_back(build_conservative(mesh, *job.cls, job.triangles, diagonal, jobs_,
+                                                          job.stop_request(), memory_limit, held));
     }
   }
 
@@ -893,12 +954,15 @@ class Pipeline {
       std::set<std::string> stops;
       std::vector<std::string> floors;  // what held the meshes that missed, first seen first
       SeamStage seam_stage = SeamStage::strict;
+      std::size_t memory_tiles = 0;
       for (std::size_t m = 0; m < job.levels[k].size(); ++m) {
         triangles += job.levels[k][m].triangle_count();
         vertices += job.levels[k][m].vertex_count();
         const MeshLod& built = (*job.chains[m])[k];
         bound = std::max(bound, built.error_bound_abs * io::world_scale(job.asset, m));
         seconds += built.seconds;
+        note_memory(built, "LOD " + std::to_string(k + 1) + " of mesh " + std::to_string(m), memory_tiles,
+                    job.record);
         if (job.asset.meshes[m].triangle_count() > 0) {
           verified = verified && built.budget.verified;
           met = met && built.budget.within;
@@ -951,6 +1015,7 @@ class Pipeline {
            {"budget", budget_json(spec.target, target_source, target_triangles, k == 0 ? job.triangles : previous, k,
                                   stops, verified && met, undone, job.shows_previous[k], floors)},
            {"seam_stage", seam_stage_name(seam_stage)},
+           {"memory_tile_triangles", memory_tiles > 0 ? Json(memory_tiles) : Json(nullptr)},
            {"mean_rel", finite(e.mean_rel())},
            {"rms_rel", finite(e.rms_rel())},
            {"hausdorff_rel", finite(e.hausdorff_rel())},
@@ -992,6 +1057,7 @@ class Pipeline {
       bool verified = true, met = true, certified = true;
       std::set<std::string> stops;
       std::vector<std::string> floors;
+      std::size_t memory_tiles = 0;
       for (std::size_t m = 0; m < job.conservative[c].size(); ++m) {
         triangles += job.conservative[c][m].triangle_count();
         vertices += job.conservative[c][m].vertex_count();
@@ -1004,6 +1070,8 @@ class Pipeline {
         certified = certified && built.budget.certified;
         undone += built.budget.collapses_undone;
         refused += built.conservative_refused;
+        note_memory(built, std::string(conservative_kind_name(spec.kind)) + " LOD of mesh " + std::to_string(m),
+                    memory_tiles, job.record);
         stops.insert(stop_reason_name(built.stop));
         for (const std::string& f : built.floors) {
           if (std::find(floors.begin(), floors.end(), f) == floors.end()) floors.push_back(f);
@@ -1067,6 +1135,7 @@ class Pipeline {
                      {"hausdorff_rel", finite(e.hausdorff_rel())},
                      {"volume_change_pct", volume_change},
                      {"collapses_refused", refused},
+                     {"memory_tile_triangles", memory_tiles > 0 ? Json(memory_tiles) : Json(nullptr)},
                      {"stop_reason", stop},
                      {"seconds", seconds},
                      {"outputs", Json::array()},
@@ -1264,6 +1333,7 @@ class Pipeline {
   const RunOptions& options_;
   const Cache& cache_;
   unsigned jobs_;
+  std::uint64_t asset_budget_;
   ChainTable chains_;
   std::map<const AssetClass*, Json> class_json_;
 };
@@ -1794,7 +1864,7 @@ RunResult run_batch(const BatchConfig& config, const RunOptions& options) {
     oversubscribe.emplace(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(jobs));
   }
   tbb::task_arena arena(static_cast<int>(jobs));
-  Pipeline pipeline(config, options, cache, jobs, chain_cache);
+  Pipeline pipeline(config, options, cache, jobs, chain_cache, budget);
   arena.execute([&] {
     namespace flow = tbb::flow;
     flow::graph g;

@@ -277,13 +277,7 @@ unsigned plan_workers(const SimplifyOptions& opt) {
 }
 
 // Why these options cannot tile (so neither split a mesh under a memory limit nor stream it), or null.
-const char* why_not_tileable(const SimplifyOptions& opt) {
-  if (opt.engine != Engine::edge_collapse && opt.engine != Engine::multiple_choice) return "this engine cannot tile";
-  if (opt.verify_budget && (opt.max_error_rel >= 0.0 || opt.max_error_abs >= 0.0)) {
-    return "a verified error budget cannot tile (--no-verify can)";
-  }
-  return nullptr;
-}
+using tiling::why_not_tileable;
 
 // `lodforge simplify --memory-limit` on a binary PLY or OBJ too large to load whole under the limit: streamed
 // out of core (tiling/stream.hpp). False where the file loads whole (the caller goes on as usual). Tiles are

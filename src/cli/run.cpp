@@ -437,7 +437,8 @@ void register_run(CLI::App& app) {
                 "smaller than the level before), collision and occluder LODs included (volume budget exceeded)");
   cmd->add_option("--memory-limit", a->memory_limit,
                   "memory the run stays under, e.g. 4G or 512M (default: half the RAM); assets start only while "
-                  "their estimated memory fits");
+                  "their estimated memory fits; one estimated over it runs alone, its LODs tiled where an untiled "
+                  "run would not fit (report.json memory_tile_triangles; docs/batch.md)");
   cmd->add_option("--asset-timeout", a->asset_timeout_s,
                   "seconds one asset may run; a slower one fails with the stage it was in and the run goes on "
                   "(0 = no limit; default: the config's defaults.asset_timeout_s, else none)")

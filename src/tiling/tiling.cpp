@@ -134,13 +134,7 @@ std::size_t global_target(const SimplifyOptions& o, std::size_t n) {
 }
 
 // applies() without the size: whether these options may tile a mesh at all.
-bool may_tile(const SimplifyOptions& options) {
-  if (options.tiling == TilingMode::off) return false;
-  if (options.engine != Engine::edge_collapse && options.engine != Engine::multiple_choice) return false;
-  // A volume budget is a fraction of the whole mesh's volume: a tile (an open piece) has none of its own.
-  if (options.conservative != Conservative::none && options.max_volume_growth >= 0.0) return false;
-  return !options.verifies_budget();
-}
+bool may_tile(const SimplifyOptions& options) { return why_not_tileable(options) == nullptr; }
 
 double cell_size(double area, std::size_t triangles, std::size_t tile_triangles, double diagonal) {
   const double per_tile = static_cast<double>(std::max<std::size_t>(tile_triangles, 1)) /
@@ -298,6 +292,19 @@ Mesh stitch(const Mesh& like, std::size_t source_vertices, const std::vector<Til
 double pass_shift(int pass) {
   static constexpr double kShifts[] = {0.0, 0.5, 0.25, 0.75};
   return kShifts[pass % 4];
+}
+
+const char* why_not_tileable(const SimplifyOptions& options) {
+  if (options.tiling == TilingMode::off) return "tiling is off";
+  if (options.engine != Engine::edge_collapse && options.engine != Engine::multiple_choice) {
+    return "this engine cannot tile";
+  }
+  // A volume budget is a fraction of the whole mesh's volume: a tile (an open piece) has none of its own.
+  if (options.conservative != Conservative::none && options.max_volume_growth >= 0.0) {
+    return "a volume budget cannot tile";
+  }
+  if (options.verifies_budget()) return "a verified error budget cannot tile (--no-verify can)";
+  return nullptr;
 }
 
 bool applies(const Mesh& triangles, const SimplifyOptions& options) {

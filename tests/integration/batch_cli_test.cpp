@@ -20,6 +20,9 @@
 #include <vector>
 
 #include "../unit/batch/library_fixture.hpp"
+#include "lodforge/core/topology.hpp"
+#include "lodforge/core/validate.hpp"
+#include "lodforge/io/asset.hpp"
 #include "lodforge/io/file.hpp"
 #include "test_support.hpp"
 
@@ -330,6 +333,48 @@ TEST(BatchCli, MemoryLimitBelowSixteenMegabytesIsRefused) {
   EXPECT_NE(bad.output.find("error: --memory-limit: 'lots' is not a byte size"), std::string::npos) << bad.output;
   const CliResult floor = run_cli(run_args(config, lib.root, dir / "out", "--memory-limit 16M"));
   EXPECT_EQ(floor.exit_code, 0) << floor.output;
+}
+
+// An asset estimated over the run's memory budget runs alone, and each LOD whose untiled run would not fit what
+// is left is tiled (the report says the tile size); one that fits stays untiled. The tiled LODs are valid closed
+// meshes near their targets; with room to spare nothing is tiled.
+TEST(BatchCli, AnAssetOverTheMemoryBudgetIsTiled) {
+  const fs::path dir = lodforge::testing::temp_dir("batch_cli_memory_tiles");
+  lodforge::io::Asset asset;
+  asset.format = lodforge::io::Format::ply;
+  asset.meshes.push_back(lodforge::testing::make_uv_sphere(150, 200));  // about 60,000 triangles
+  const std::size_t triangles = asset.meshes[0].face_count();
+  fs::create_directories(dir / "lib/props");
+  lodforge::io::save_asset(asset, dir / "lib/props/sphere.ply");
+  const fs::path config = dir / "config.json";
+  std::ofstream(config) << R"({"version": 1, "classes": [{"name": "props", "match": ["props/**"],
+      "lods": [{"ratio": 0.5}, {"ratio": 0.1}, {"ratio": 0.02}]}]})";
+  const CliResult r = run_cli(run_args(config, dir / "lib", dir / "out", "--memory-limit 16M --jobs 2"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const Json report = Json::parse(lodforge::io::read_file(dir / "out/report.json"));
+  const Json& a = report["assets"][0];
+  EXPECT_EQ(a["status"], "ok") << a.dump(1);
+  EXPECT_FALSE(a.contains("warnings") && !a["warnings"].empty()) << a.dump(1);
+  ASSERT_EQ(a["lods"].size(), 3u);
+  EXPECT_TRUE(a["lods"][0]["memory_tile_triangles"].is_number()) << a["lods"][0].dump(1);
+  EXPECT_LT(a["lods"][0]["memory_tile_triangles"].get<std::size_t>(), triangles / 4);
+  EXPECT_TRUE(a["lods"][2]["memory_tile_triangles"].is_null()) << "a small LOD fits untiled";
+  const double ratios[] = {0.5, 0.1, 0.02};
+  for (int k = 0; k < 3; ++k) {
+    const lodforge::io::Asset lod =
+        lodforge::io::load_asset(dir / ("out/props/sphere_LOD" + std::to_string(k + 1) + ".ply"));
+    ASSERT_EQ(lod.meshes.size(), 1u);
+    const lodforge::Mesh& m = lod.meshes[0];
+    EXPECT_TRUE(lodforge::validate(m).ok()) << k;
+    EXPECT_TRUE(lodforge::summarize_topology(m, lodforge::build_topology(m)).closed_manifold()) << k;
+    EXPECT_NEAR(static_cast<double>(m.face_count()), ratios[k] * static_cast<double>(triangles),
+                0.01 * static_cast<double>(triangles) * ratios[k] + 2)
+        << k;
+  }
+  const CliResult roomy = run_cli(run_args(config, dir / "lib", dir / "out2", "--memory-limit 4G"));
+  ASSERT_EQ(roomy.exit_code, 0) << roomy.output;
+  const Json report2 = Json::parse(lodforge::io::read_file(dir / "out2/report.json"));
+  for (const Json& l : report2["assets"][0]["lods"]) EXPECT_TRUE(l["memory_tile_triangles"].is_null()) << l.dump(1);
 }
 
 TEST(BatchCli, JobsBeyondTheCoresAreWarnedAbout) {

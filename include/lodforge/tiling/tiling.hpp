@@ -40,6 +40,8 @@ inline constexpr std::size_t kFinalTiles = 4;
 // automatic and at least kAutoThresholdTriangles triangles; a triangle engine (edge_collapse, multiple_choice);
 // no error budget to verify (budgets stay on the untiled path, which verifies them).
 bool applies(const Mesh& triangles, const SimplifyOptions& options);
+// Why the options cannot tile at all (a sentence fragment for messages), or nullptr where they can.
+const char* why_not_tileable(const SimplifyOptions& options);
 
 // One cut of a mesh into tiles: cell size `cell` on a grid whose origin is the bounding box's minimum moved
 // back by `shift` cells on every axis; each triangle goes to the cell of its centroid. Tiles are the occupied
