@@ -430,7 +430,7 @@ DistanceBound bound_triangles(std::span<const Vec3d> positions, std::span<const 
       }
       return give_up();
     }
-    double enough = std::max((1.0 + options.tolerance) * out.lower, options.good_enough);
+    double enough = std::max({(1.0 + options.tolerance) * out.lower, options.good_enough, options.settle_below});
     // Listing, the largest distance may be one set aside over the threshold: a part settles only below it.
     if (options.list_over) enough = std::min(enough, options.give_up_above);
     split.clear();

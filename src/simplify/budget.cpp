@@ -44,6 +44,10 @@ constexpr double kFinestTolerance = 0.002;
 // it, and the reported bound is close enough. Flat parts lying on the input (CAD faces) have distance zero,
 // and a Lipschitz bound only reaches zero by splitting without end.
 constexpr double kGoodEnough = 0.5;
+// Output → reference settles any part bounded within the budget, however far above the distances measured
+// there: the reported bound is the proof of the decision, and refining it further (down to kBoundTolerance)
+// cost a third of that bound's queries on coarse LODs. Reference → output gains little from it (its
+// threshold, kReverseTolerance, is already its ceiling) and keeps its tighter report.
 // Closest-point queries allowed per triangle measured (plus a base) when bounding a prefix. Output → reference
 // on a guarded LOD rarely converges (the guard holds every face near 0.7 of the budget, and a Lipschitz bound
 // gets there only by splitting without end), so its allowance buys only a tighter reported bound; reference
@@ -370,6 +374,7 @@ class Reference {
     const std::size_t measured = static_cast<std::size_t>(std::count(on_target->begin(), on_target->end(), 0));
     DistanceBoundOptions options{.tolerance = kBoundTolerance,
                                  .good_enough = kGoodEnough * budget,
+                                 .settle_below = reverse ? 0.0 : budget,
                                  .give_up_above = budget,
                                  .list_over = reverse,
                                  .max_queries = (reverse ? kReverseQueriesPerTriangle : kForwardQueriesPerTriangle) * measured +

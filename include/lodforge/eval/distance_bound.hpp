@@ -37,6 +37,9 @@ struct DistanceBoundOptions {
   // Triangles whose bound is at or below this need no refinement (distances this small do not matter to the
   // caller); 0: refine down to `tolerance`. Also what a zero-distance mesh reports at most.
   double good_enough = 0.0;
+  // Triangles whose bound is at or below this are not refined further, however far it is from the distances
+  // measured: for a caller that decides against this value and reports the bound only as that decision's proof.
+  double settle_below = 0.0;
   // Stop as soon as a measured distance exceeds this (the caller only needs to know that it does).
   double give_up_above = std::numeric_limits<double>::infinity();
   // Instead of stopping there, set aside the parts measured over it and bound the rest: `over` then names

@@ -62,6 +62,28 @@ TEST(DistanceBound, IsAtLeastTheSampledMaximum) {
   EXPECT_LE(b.lower, b.upper);
 }
 
+// A caller deciding against a value needs no bound tighter than it: nodes bounded at or below it are not
+// refined, so the bound costs fewer queries and still holds the true maximum.
+TEST(DistanceBound, SettlesAtTheDecidingValue) {
+  const Mesh sphere = testing::make_uv_sphere(12, 16, 1.0f);
+  const Mesh fine = testing::make_uv_sphere(48, 64, 1.0f);
+  const SurfaceIndex target(fine);
+  const EvalResult e = evaluate(fine, sphere);
+  const DistanceBound tight = distance_bound(sphere, target, {.tolerance = 0.02});
+  ASSERT_TRUE(tight.converged);
+  const double decide = 1.5 * tight.upper;
+  const DistanceBound settled = distance_bound(sphere, target, {.tolerance = 0.02, .settle_below = decide});
+  EXPECT_TRUE(settled.converged);
+  EXPECT_LE(settled.upper, decide);
+  EXPECT_GE(settled.upper, e.b_to_a.max);
+  EXPECT_LE(settled.lower, settled.upper);
+  EXPECT_LT(settled.queries, tight.queries);
+  // Below the largest distance it changes nothing: every node over the maximum is refined as before.
+  const DistanceBound under = distance_bound(sphere, target, {.tolerance = 0.02, .settle_below = 0.5 * tight.lower});
+  EXPECT_EQ(under.upper, tight.upper);
+  EXPECT_EQ(under.queries, tight.queries);
+}
+
 TEST(DistanceBound, GivesUpAboveAThresholdAndIsThreadIndependent) {
   const Mesh sphere = testing::make_uv_sphere(12, 16, 1.0f);
   const Mesh fine = testing::make_uv_sphere(48, 64, 1.0f);
