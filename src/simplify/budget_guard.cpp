@@ -62,6 +62,26 @@ bool overlaps(const Bounds3& a, const Bounds3& b) {
 // Samples whose attached face keeps them this close (in budgets) stay where they are when the face changes.
 constexpr double kStayFraction = 0.25;
 
+// Triangle t's unit normal and offset: |n·p - offset| is p's distance to its plane, which no point of t is
+// nearer than. Zero (no pruning) where t has no normal it can trust: on a sliver (an angle under about 1e-6)
+// the cross product's direction carries the rounding of its edges divided by that angle.
+std::array<double, 4> plane_of(const std::array<Vec3d, 3>& t) {
+  const Vec3d e1 = t[1] - t[0], e2 = t[2] - t[0];
+  const Vec3d n = cross(e1, e2);
+  const double nn = dot(n, n);
+  if (!(nn > 1e-12 * dot(e1, e1) * dot(e2, e2)) || !std::isfinite(nn)) return {0, 0, 0, 0};
+  const double length = std::sqrt(nn);
+  const Vec3d u = n * (1.0 / length);
+  return {u[0], u[1], u[2], dot(u, t[0])};
+}
+
+// Whether triangle t, whose plane is `plane`, cannot be strictly nearer p than `best_sq`: its plane is
+// farther, by a margin far above the rounding of either distance (normalised coordinates are about 1).
+bool plane_beyond(const Vec3d& p, const std::array<double, 4>& plane, double best_sq) {
+  const double h = std::abs(plane[0] * p[0] + plane[1] * p[1] + plane[2] * p[2] - plane[3]);
+  return h > std::sqrt(best_sq) + 1e-9;
+}
+
 }  // namespace
 
 // Whether the sample points of triangle pqr (model units; for_each_face_sample, the measurement's own) lie
@@ -254,6 +274,7 @@ bool CollapseMesh::guard_ok(std::uint32_t a, std::uint32_t b, const Check& c, co
   const bool b_stays = vx_[b].pos == x;
   // Reference → output: the samples attached to every face that changes or dies (a's, the edge faces among
   // them; a half-edge collapse leaves the survivor's other faces where they are).
+  std::size_t last = 0;
   for (const std::uint32_t w : {a, b}) {
     if (w == b && b_stays) continue;
     const std::uint32_t* fl = star(w);
@@ -262,8 +283,15 @@ bool CollapseMesh::guard_ok(std::uint32_t a, std::uint32_t b, const Check& c, co
       if (w == b && is_edge_face(f)) continue;  // seen from a
       for (std::uint32_t smp = guard_head_[f]; smp != kInvalidIndex; smp = guard_next_[smp]) {
         const Vec3d& p = guard_samples_[smp];
+        // A face's samples lie close together: the face that held the last one is tried first.
         bool within = false;
-        for (std::size_t k = 0; k < s.fan.size() && !within; ++k) within = distance_sq(p, s.fan[k]) <= guard_budget2_;
+        for (std::size_t n = 0, k = last; n < s.fan.size(); ++n, k = k + 1 == s.fan.size() ? 0 : k + 1) {
+          if (distance_sq(p, s.fan[k]) <= guard_budget2_) {
+            within = true;
+            last = k;
+            break;
+          }
+        }
         if (!within) return false;
       }
     }
@@ -282,6 +310,8 @@ void CollapseMesh::guard_reattach(const Check& c, Scratch& s, bool b_moved, std:
     s.fan.push_back({vx_[t[0]].pos, vx_[t[1]].pos, vx_[t[2]].pos});
     s.fan_face.push_back(fl[i]);
   }
+  s.fan_plane.clear();
+  for (const std::array<Vec3d, 3>& t : s.fan) s.fan_plane.push_back(plane_of(t));
   // Detach the samples of the dead faces and of every face around b; a sample still close to its own
   // (surviving) face stays on it.
   const double stay2 = kStayFraction * kStayFraction * guard_budget2_;
@@ -296,7 +326,8 @@ void CollapseMesh::guard_reattach(const Check& c, Scratch& s, bool b_moved, std:
     std::uint32_t kept = kInvalidIndex;
     for (std::uint32_t smp = head, next; smp != kInvalidIndex; smp = next) {
       next = guard_next_[smp];
-      if (distance_sq(guard_samples_[smp], s.fan[k]) <= stay2) {
+      const Vec3d& p = guard_samples_[smp];
+      if (!plane_beyond(p, s.fan_plane[k], stay2) && distance_sq(p, s.fan[k]) <= stay2) {
         guard_next_[smp] = kept;
         kept = smp;
       } else {
@@ -305,17 +336,22 @@ void CollapseMesh::guard_reattach(const Check& c, Scratch& s, bool b_moved, std:
     }
     head = kept;
   }
+  std::size_t last = 0;
   for (const std::uint32_t smp : s.moved) {
     const Vec3d& p = guard_samples_[smp];
-    double best = std::numeric_limits<double>::infinity();
-    std::size_t at = 0;
+    // The nearest face, the first of equals: the last sample's face gives a bound to start from, and a face
+    // whose plane lies beyond the best so far cannot beat it.
+    double best = s.fan.empty() ? std::numeric_limits<double>::infinity() : distance_sq(p, s.fan[last]);
+    std::size_t at = last;
     for (std::size_t k = 0; k < s.fan.size(); ++k) {
+      if (k == last || plane_beyond(p, s.fan_plane[k], best)) continue;
       const double d2 = distance_sq(p, s.fan[k]);
-      if (d2 < best) {
+      if (d2 < best || (d2 == best && k < at)) {
         best = d2;
         at = k;
       }
     }
+    last = at;
     if (s.fan.empty()) continue;  // no face left around the survivor: nothing to attach to
     std::uint32_t& head = guard_head_[s.fan_face[at]];
     guard_next_[smp] = head;

@@ -250,6 +250,7 @@ struct Scratch {
   std::vector<std::array<Vec3d, 3>> fan;  // guard: the faces a collapse leaves around the new vertex
   std::vector<std::uint32_t> fan_face;    // guard: their face ids
   std::vector<std::uint32_t> moved;       // guard: samples being attached to new faces
+  std::vector<std::array<double, 4>> fan_plane;  // guard: the fan faces' unit normals and offsets
 };
 
 class CollapseMesh {
