@@ -34,22 +34,24 @@ inline bool entry_less(const QueueEntry& a, const QueueEntry& b) {
   return a.key < b.key || (a.key == b.key && a.v < b.v);
 }
 
-// Priority queue: a 4-ary min-heap in front of cost buckets (a bucketed heap).
+// Priority queue: a sorted run and a small 4-ary min-heap in front of cost buckets (a bucketed queue).
 //
 // Costs only grow as the mesh coarsens (a quadric sum never loses a term), so nearly every re-evaluated
 // candidate lands above the current minimum. Such pushes go to a bucket (1/16 of an octave of cost, by the
-// float's exponent and top mantissa bits) as a plain append; the heap holds only the lowest non-empty bucket
-// plus whatever is pushed at or below it. When the heap runs dry the next bucket is filtered for stale
-// entries (in parallel: one version lookup each, the dominant cost of a plain heap) and heapified. The pop
-// order is exactly the (key, v) order of a single heap over all live entries.
+// float's exponent and top mantissa bits) as a plain append. When the front runs dry, the next bucket is
+// filtered for stale entries (in parallel: one version lookup each) and sorted into the run, which is then read
+// front to back; only what is pushed at or below that bucket (the few candidates whose cost fell, and what a
+// round popped and put back) goes to the heap, which stays small. Popping is the smaller of the run's next entry
+// and the heap's top: exactly the (key, v) order of a single heap over all live entries, without a heap walk
+// over a bucket's worth of entries per pop.
 class CandidateQueue {
  public:
   static constexpr int kBucketShift = 19;  // float bits >> 19: sign, 8 exponent and 4 mantissa bits
   CandidateQueue() : buckets_(std::size_t{1} << (32 - kBucketShift)) {}
 
   std::size_t size() const { return stored_; }
-  bool heap_empty() const { return heap_.empty(); }
-  const QueueEntry& top() const { return heap_.front(); }
+  // The cheapest entry; only after refill() returned true.
+  const QueueEntry& top() const { return from_run() ? run_[next_] : heap_.front(); }
 
   void push(const QueueEntry& e) {
     ++stored_;
@@ -64,6 +66,10 @@ class CandidateQueue {
   }
   void pop() {
     --stored_;
+    if (from_run()) {
+      ++next_;
+      return;
+    }
     const QueueEntry last = heap_.back();
     heap_.pop_back();
     if (heap_.empty()) return;
@@ -78,11 +84,11 @@ class CandidateQueue {
     }
     sift_up(i, last);
   }
-  // Moves the next bucket into the heap once the heap is empty, dropping entries keep() rejects (decided in
-  // parallel). Returns false when nothing is left.
+  // Once the run and the heap are both empty, moves the next bucket into the run, dropping entries keep()
+  // rejects (decided in parallel) and sorting the rest. Returns false when nothing is left.
   template <typename Keep>
   bool refill(Parallel& parallel, Keep&& keep) {
-    while (heap_.empty()) {
+    while (heap_.empty() && next_ == run_.size()) {
       while (first_ < buckets_.size() && buckets_[first_].empty()) ++first_;
       if (first_ >= buckets_.size()) return false;
       active_ = first_;
@@ -92,19 +98,27 @@ class CandidateQueue {
       parallel.for_ranges(bucket.size(), 1024, [&](std::size_t b, std::size_t e) {
         for (std::size_t i = b; i < e; ++i) keep_flags_[i] = keep(bucket[i]) ? 1 : 0;
       });
+      run_.clear();
+      next_ = 0;
       for (std::size_t i = 0; i < bucket.size(); ++i) {
-        if (keep_flags_[i]) heap_.push_back(bucket[i]);
+        if (keep_flags_[i]) run_.push_back(bucket[i]);
       }
-      stored_ += heap_.size();
-      std::vector<QueueEntry>().swap(bucket);  // release: this bucket is now the heap
-      heapify();
+      stored_ += run_.size();
+      std::vector<QueueEntry>().swap(bucket);  // release: this bucket is now the run
+      // A total order (vsum last), so the sorted run is one sequence whatever the sort does with ties.
+      parallel.sort(run_.begin(), run_.end(), [](const QueueEntry& a, const QueueEntry& b) {
+        return entry_less(a, b) || (a.key == b.key && a.v == b.v && a.vsum < b.vsum);
+      });
     }
     return true;
   }
-  // Drops every entry keep() rejects from the heap and all buckets (bounds memory).
+  // Drops every entry keep() rejects from the run, the heap and all buckets (bounds memory).
   template <typename Keep>
   void purge(Parallel& parallel, Keep&& keep) {
+    run_.erase(run_.begin(), run_.begin() + static_cast<std::ptrdiff_t>(next_));
+    next_ = 0;
     std::vector<std::vector<QueueEntry>*> lists;
+    lists.push_back(&run_);
     lists.push_back(&heap_);
     for (auto& b : buckets_) {
       if (!b.empty()) lists.push_back(&b);
@@ -122,6 +136,9 @@ class CandidateQueue {
 
  private:
   static constexpr std::uint32_t kNone = 0xffffffffu;
+
+  // Whether top() is the run's next entry (else the heap's top).
+  bool from_run() const { return next_ < run_.size() && (heap_.empty() || !entry_less(heap_.front(), run_[next_])); }
 
   void heapify() {
     const std::size_t n = heap_.size();
@@ -156,9 +173,11 @@ class CandidateQueue {
   }
 
   std::vector<std::vector<QueueEntry>> buckets_;
-  std::vector<QueueEntry> heap_;
+  std::vector<QueueEntry> run_;   // the active bucket, sorted; entries before next_ are popped
+  std::size_t next_ = 0;
+  std::vector<QueueEntry> heap_;  // pushed at or below the active bucket since it became the run
   std::vector<std::uint8_t> keep_flags_;
-  std::uint32_t active_ = kNone;  // highest bucket whose entries live in the heap
+  std::uint32_t active_ = kNone;  // highest bucket whose entries live in the run or the heap
   std::uint32_t first_ = 0;       // no bucket below this one holds entries
   std::size_t stored_ = 0;
 };
@@ -186,6 +205,8 @@ class ParkingLot {
   }
   // Whether any list is non-empty (each candidate counts twice, once per endpoint).
   bool any() const { return waiting_ > 0; }
+  // Whether a candidate is parked on x.
+  bool at(std::uint32_t x) const { return head_[x] != kInvalidIndex; }
 
  private:
   struct Entry {

@@ -32,6 +32,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
 #include <tbb/task_arena.h>
 
 #include "lodforge/core/mesh.hpp"
@@ -211,6 +212,17 @@ class Parallel {
     });
   }
 
+  // std::sort of [begin, end), in parallel when it is large. Only for a strict total order: the result is then
+  // the one sorted sequence, whatever the threads do.
+  template <typename It, typename Less>
+  void sort(It begin, It end, Less&& less) {
+    if (concurrency_ <= 1 || end - begin < 16384) {
+      std::sort(begin, end, less);
+      return;
+    }
+    arena_.execute([&] { tbb::parallel_sort(begin, end, less); });
+  }
+
  private:
   unsigned concurrency_ = 1;
   tbb::task_arena arena_;
@@ -358,6 +370,13 @@ class CollapseMesh {
   }
   // Hints that the face list of v will be read soon.
   void prefetch_star(std::uint32_t v) const { __builtin_prefetch(star(v)); }
+  void prefetch_version(std::uint32_t v) const { __builtin_prefetch(&version_[v]); }
+  // What reserve() and list_room() read of v's face list.
+  void prefetch_list(std::uint32_t v) const {
+    __builtin_prefetch(&begin_[v]);
+    __builtin_prefetch(&size_[v]);
+    __builtin_prefetch(&capacity_[v]);
+  }
   // Calls f(w) for every vertex of every face of u and of v (with repeats): their closed neighbourhood.
   template <typename F>
   void for_each_closed_ring_vertex(std::uint32_t u, std::uint32_t v, F&& f) const {

@@ -60,6 +60,9 @@ constexpr std::size_t kLargeStars = 64;
 // 1 + symmetry_weight) exceeds its queued cost by more than this factor; within it, it is taken as it is.
 constexpr double kRekeySlack = 1.01;
 
+// How many candidates ahead the sequential passes of select() and commit() prefetch what they will read.
+constexpr std::size_t kLookahead = 8;
+
 class GreedyEngine {
  public:
   GreedyEngine(const Mesh& triangles, const SimplifyOptions& options, const CollapsePolicies& policies,
@@ -199,10 +202,22 @@ class GreedyEngine {
       window_.clear();
       // A quarter more than the batch still needs: some will conflict (fewer windows, fewer parallel loops).
       const std::size_t want = std::max<std::size_t>((batch - selected_.size()) * 5 / 4, 32);
-      while (window_.size() < want && queue_.refill(parallel_, is_current)) {
-        const QueueEntry e = queue_.top();
-        queue_.pop();
-        if (current(e)) window_.push_back(e);
+      // Popped in runs and then tested for staleness with the version reads prefetched ahead: the same
+      // entries in the same order as testing each as it is popped, without a cache miss per pop in between.
+      while (window_.size() < want) {
+        popped_.clear();
+        while (popped_.size() < want - window_.size() && queue_.refill(parallel_, is_current)) {
+          popped_.push_back(queue_.top());
+          queue_.pop();
+        }
+        if (popped_.empty()) break;
+        for (std::size_t k = 0; k < popped_.size(); ++k) {
+          if (k + kLookahead < popped_.size()) {
+            cm_.prefetch_version(popped_[k + kLookahead].u());
+            cm_.prefetch_version(popped_[k + kLookahead].v);
+          }
+          if (current(popped_[k])) window_.push_back(popped_[k]);
+        }
       }
       if (window_.empty()) break;
       const std::size_t nwin = window_.size();
@@ -233,6 +248,12 @@ class GreedyEngine {
       });
       std::size_t i = 0;
       for (; i < nwin && !full && selected_.size() < batch; ++i) {
+        if (i + kLookahead < nwin) {  // the marks a later candidate will test, while this one is tested
+          const std::size_t j = i + kLookahead;
+          for (std::size_t k = window_first_[j]; k < window_first_[j + 1]; ++k) {
+            __builtin_prefetch(&mark_[closed_ring_[k]]);
+          }
+        }
         const std::uint32_t* ring_begin = closed_ring_.data() + window_first_[i];
         const std::uint32_t* ring_end = closed_ring_.data() + window_first_[i + 1];
         bool conflict = false;
@@ -344,6 +365,10 @@ class GreedyEngine {
     total_ = 0;
     std::size_t room = 0;
     for (std::size_t i = 0; i < ns; ++i) {
+      if (i + kLookahead < ns && checks_[i + kLookahead].ok()) {
+        cm_.prefetch_list(checks_[i + kLookahead].victim);
+        cm_.prefetch_list(checks_[i + kLookahead].survivor);
+      }
       if (evals_[i].error <= budget2_ && checks_[i].ok()) room += cm_.list_room(checks_[i]);
     }
     cm_.make_room(room);
@@ -389,6 +414,7 @@ class GreedyEngine {
     ring_first_.push_back(total_);
     ring_buf_.resize(total_);
     ring_size_.resize(nsurv);
+    parked_near_.resize(nsurv);
     fresh_.resize(total_);
 
     parallel_.for_ranges(nsurv, 8, [&](std::size_t b, std::size_t e) {
@@ -649,6 +675,12 @@ class GreedyEngine {
     for (std::uint32_t w : s.ring) cm_.prefetch(w);
     const std::uint32_t base = ring_first_[i];
     ring_size_[i] = static_cast<std::uint32_t>(s.ring.size());
+    // Whether release() has anything to look at here (read-only in the parallel phase; release() runs after).
+    bool parked = parked_.any() && parked_.at(sv);
+    if (parked_.any()) {
+      for (std::uint32_t w : s.ring) parked = parked || parked_.at(w);
+    }
+    parked_near_[i] = parked ? 1 : 0;
     for (std::size_t r = 0; r < s.ring.size(); ++r) {
       const std::uint32_t w = s.ring[r];
       ring_buf_[base + r] = w;
@@ -677,6 +709,7 @@ class GreedyEngine {
     for (std::uint32_t sv : survivors_) mark_[sv] = stamp_;
     released_.clear();
     for (std::size_t i = 0; i < survivors_.size(); ++i) {
+      if (!parked_near_[i]) continue;
       parked_.release(survivors_[i], released_);
       for (std::uint32_t r = 0; r < ring_size_[i]; ++r) parked_.release(ring_buf_[ring_first_[i] + r], released_);
     }
@@ -722,7 +755,7 @@ class GreedyEngine {
   // Per-round buffers, kept across rounds to avoid reallocation.
   std::vector<std::uint32_t> mark_;  // mark_[v] == stamp_: v is in the current round's claimed set
   std::uint32_t stamp_ = 0;
-  std::vector<QueueEntry> selected_, deferred_, window_;
+  std::vector<QueueEntry> selected_, deferred_, window_, popped_;
   // Per selected_: how it relates to its mirror image, and (kLeads) the mirror edge or (kCompletes) the first
   // half's survivor and victim.
   enum Role : std::uint8_t {
@@ -750,6 +783,7 @@ class GreedyEngine {
   std::vector<Check> checks_;
   std::vector<std::uint32_t> survivors_, committed_, ring_first_, ring_buf_, ring_size_;
   std::vector<QueueEntry> fresh_;
+  std::vector<std::uint8_t> parked_near_;  // per survivor: a candidate is parked on it or on its ring
   std::vector<std::pair<std::uint32_t, std::uint32_t>> released_;
 
   // Symmetry (empty: off): per vertex its mirror image (itself on the plane, kInvalidIndex: none), kept
