@@ -1,5 +1,5 @@
-// The greedy engine's candidate queue (a bucketed heap of versioned edge entries) and its parking lot for
-// candidates refused at check time. Engine-internal.
+// The greedy engine's candidate queue (cost buckets of versioned edge entries, read as sorted runs) and its
+// parking lot for candidates refused at check time. Engine-internal.
 #pragma once
 
 #include <algorithm>

@@ -7,7 +7,7 @@
 //    sequentially in cost order, so the result does not depend on the thread count.
 //
 //   run()       collect(); then, until the stop rule holds or nothing is left:
-//   collect()   every allowed edge evaluated in parallel and queued (bucketed heap of (cost, u, v, version sum);
+//   collect()   every allowed edge evaluated in parallel and queued (cost buckets of (cost, u, v, version sum);
 //               stale entries are skipped when they surface)
 //   select()    the cheapest candidates whose closed neighbourhoods are disjoint, in cost order (the
 //               neighbourhoods are gathered in parallel)
