@@ -16,6 +16,18 @@ using Key = std::tuple<std::uint64_t, std::uint32_t, std::uint32_t>;  // (key, v
 
 Key key_of(const QueueEntry& e) { return {e.key, e.v, e.vsum}; }
 
+// Pops everything left, each pop the reference's least entry, until both are empty.
+template <typename Keep>
+void drain(CandidateQueue& queue, Parallel& parallel, Keep&& keep, std::set<Key>& reference) {
+  while (queue.refill(parallel, keep)) {
+    ASSERT_FALSE(reference.empty());
+    ASSERT_EQ(key_of(queue.top()), *reference.begin());
+    reference.erase(reference.begin());
+    queue.pop();
+  }
+  EXPECT_TRUE(reference.empty());
+}
+
 // Pushes and pops interleaved, most pushes above the current minimum (as re-evaluations are) and some at or
 // below it (as a round's put-backs are): the queue must pop exactly what an ordered set of the same entries
 // would, through bucket changes, runs and the side heap.
@@ -53,12 +65,7 @@ void expect_same_order_as_a_set(unsigned threads, std::size_t pushes_per_step, f
     }
     ASSERT_EQ(queue.size(), reference.size());
   }
-  while (queue.refill(parallel, keep_all)) {
-    ASSERT_EQ(key_of(queue.top()), *reference.begin());
-    reference.erase(reference.begin());
-    queue.pop();
-  }
-  EXPECT_TRUE(reference.empty());
+  drain(queue, parallel, keep_all, reference);
   EXPECT_GT(popped, static_cast<std::size_t>(steps) * pushes_per_step / 2);
 }
 
@@ -91,12 +98,7 @@ TEST(CandidateQueue, RefillAndPurgeDropWhatKeepRejects) {
   }
   queue.purge(parallel, even);
   EXPECT_EQ(queue.size(), reference.size());
-  while (queue.refill(parallel, even)) {
-    ASSERT_EQ(key_of(queue.top()), *reference.begin());
-    reference.erase(reference.begin());
-    queue.pop();
-  }
-  EXPECT_TRUE(reference.empty());
+  drain(queue, parallel, even, reference);
 }
 
 }  // namespace
