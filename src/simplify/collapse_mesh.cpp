@@ -101,13 +101,16 @@ CollapseMesh::CollapseMesh(const Mesh& m, const SimplifyOptions& options, Parall
   cos_max_flip_ = std::cos(options.max_flip_angle_deg * std::numbers::pi / 180.0);
   height_field_axis_ = options.height_field_axis;
 
-  vx_.resize(nv);
+  vx_.resize(nv);  // unconstructed: each record is constructed below, in parallel (128 bytes a vertex)
   version_.assign(nv, 0);
   kind_.assign(nv, VertexKind::interior);
   state_.assign(nv, 0);
   const double inv = 1.0 / scale_;
   parallel.for_ranges(nv, 4096, [&](std::size_t b, std::size_t e) {
-    for (std::size_t v = b; v < e; ++v) vx_[v].pos = (to_double(m.positions[v]) - origin_) * inv;
+    for (std::size_t v = b; v < e; ++v) {
+      ::new (static_cast<void*>(&vx_[v])) Vertex{};
+      vx_[v].pos = (to_double(m.positions[v]) - origin_) * inv;
+    }
   });
 
   // Working triangles: those with valid indices and three distinct vertices. Two parallel passes over fixed

@@ -24,8 +24,11 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <memory>
+#include <new>
 #include <optional>
 #include <span>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -226,6 +229,26 @@ class Parallel {
  private:
   unsigned concurrency_ = 1;
   tbb::task_arena arena_;
+};
+
+// std::allocator, except that resize() constructs nothing: the caller constructs each new element (placement
+// new) before using it, so that a large array is first touched, page by page, by the threads that fill it rather
+// than by one thread's memset. Only for trivially destructible types.
+template <typename T>
+struct UnconstructedAllocator : std::allocator<T> {
+  template <typename U>
+  struct rebind {
+    using other = UnconstructedAllocator<U>;
+  };
+  UnconstructedAllocator() = default;
+  template <typename U>
+  UnconstructedAllocator(const UnconstructedAllocator<U>&) noexcept {}
+  template <typename U>
+  void construct(U*) noexcept {}
+  template <typename U, typename... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
 };
 
 // An evaluated candidate collapse of edge (u, v), u < v.
@@ -516,7 +539,8 @@ class CollapseMesh {
     Vec3f anchor_sum{};
   };
   static_assert(sizeof(Vertex) == 128);
-  std::vector<Vertex> vx_;
+  static_assert(std::is_trivially_destructible_v<Vertex>);
+  std::vector<Vertex, UnconstructedAllocator<Vertex>> vx_;  // constructed by the threads that first fill it
   // With an error budget: per vertex, the input point it absorbed that is farthest from its fan (normalised
   // coordinates; a proxy for the input → LOD distance, which the quadric does not see). Empty otherwise.
   std::vector<Vec3d> far_;
@@ -524,9 +548,11 @@ class CollapseMesh {
   std::vector<std::uint32_t> version_;
   std::vector<VertexKind> kind_;
   std::vector<std::uint8_t> state_;
-  std::vector<std::uint32_t> tri_;        // 3 vertices per face; tri_[3f] == kInvalidIndex: dead
-  std::vector<std::uint32_t> tri_wedge_;  // 3 wedges per face
-  std::vector<std::uint32_t> tri_source_; // input face of each working face
+  // Written whole by the constructor's parallel pass, so left unconstructed by resize().
+  using FaceArray = std::vector<std::uint32_t, UnconstructedAllocator<std::uint32_t>>;
+  FaceArray tri_;         // 3 vertices per face; tri_[3f] == kInvalidIndex: dead
+  FaceArray tri_wedge_;   // 3 wedges per face
+  FaceArray tri_source_;  // input face of each working face
   std::vector<std::uint32_t> begin_, size_, capacity_;  // per-vertex face lists in pool_
   std::vector<std::uint32_t> pool_;
   std::size_t alive_faces_ = 0;
