@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <bit>
 #include <cstdint>
+#include <memory>
 #include <utility>
 #include <vector>
 
@@ -38,18 +39,20 @@ inline bool entry_less(const QueueEntry& a, const QueueEntry& b) {
 //
 // Costs only grow as the mesh coarsens (a quadric sum never loses a term), so nearly every re-evaluated
 // candidate lands above the current minimum. Such pushes go to a bucket (1/16 of an octave of cost, by the
-// float's exponent and top mantissa bits) as a plain append. When the front runs dry, the next bucket is
-// filtered for stale entries (in parallel: one version lookup each) and sorted into the run, which is then read
-// front to back; only what is pushed at or below that bucket (the few candidates whose cost fell, and what a
-// round popped and put back) goes to the heap, which stays small. Popping is the smaller of the run's next entry
-// and the heap's top: exactly the (key, v) order of a single heap over all live entries, without a heap walk
-// over a bucket's worth of entries per pop.
+// float's exponent and top mantissa bits) as a plain append into its last block. When the front runs dry, the
+// next bucket is filtered for stale entries (in parallel: one version lookup each) and sorted into the run,
+// which is then read front to back; only what is pushed at or below that bucket (the few candidates whose cost
+// fell, and what a round popped and put back) goes to the heap, which stays small. Popping is the smaller of
+// the run's next entry and the heap's top: exactly the (key, v) order of a single heap over all live entries,
+// without a heap walk over a bucket's worth of entries per pop.
 class CandidateQueue {
  public:
   static constexpr int kBucketShift = 19;  // float bits >> 19: sign, 8 exponent and 4 mantissa bits
   CandidateQueue() : buckets_(std::size_t{1} << (32 - kBucketShift)) {}
 
   std::size_t size() const { return stored_; }
+  // Entries the buckets' blocks can hold, in use or free (what the buckets' memory is).
+  std::size_t storage_entries() const { return slabs_.size() * kBlocksPerSlab * kBlock; }
   // The cheapest entry; only after refill() returned true.
   const QueueEntry& top() const { return from_run() ? run_[next_] : heap_.front(); }
 
@@ -60,7 +63,7 @@ class CandidateQueue {
       heap_.push_back(e);
       sift_up(heap_.size() - 1, e);
     } else {
-      buckets_[b].push_back(e);
+      append(buckets_[b], e);
       first_ = std::min(first_, b);
     }
   }
@@ -85,26 +88,37 @@ class CandidateQueue {
     sift_up(i, last);
   }
   // Once the run and the heap are both empty, moves the next bucket into the run, dropping entries keep()
-  // rejects (decided in parallel) and sorting the rest. Returns false when nothing is left.
+  // rejects (decided in parallel) and sorting the rest; the bucket's blocks go back to the free list. Returns
+  // false when nothing is left.
   template <typename Keep>
   bool refill(Parallel& parallel, Keep&& keep) {
     while (heap_.empty() && next_ == run_.size()) {
-      while (first_ < buckets_.size() && buckets_[first_].empty()) ++first_;
+      while (first_ < buckets_.size() && buckets_[first_].size == 0) ++first_;
       if (first_ >= buckets_.size()) return false;
       active_ = first_;
-      std::vector<QueueEntry>& bucket = buckets_[active_];
-      stored_ -= bucket.size();
-      keep_flags_.resize(bucket.size());
-      parallel.for_ranges(bucket.size(), 1024, [&](std::size_t b, std::size_t e) {
-        for (std::size_t i = b; i < e; ++i) keep_flags_[i] = keep(bucket[i]) ? 1 : 0;
+      Bucket& bucket = buckets_[active_];
+      chain(bucket, chain_);
+      stored_ -= bucket.size;
+      keep_flags_.resize(bucket.size);
+      parallel.for_ranges(chain_.size(), 4, [&](std::size_t b, std::size_t e) {
+        for (std::size_t i = b; i < e; ++i) {
+          const QueueEntry* p = block(chain_[i]);
+          const std::size_t n = i + 1 == chain_.size() ? bucket.fill : kBlock;
+          for (std::size_t j = 0; j < n; ++j) keep_flags_[i * kBlock + j] = keep(p[j]) ? 1 : 0;
+        }
       });
       run_.clear();
       next_ = 0;
-      for (std::size_t i = 0; i < bucket.size(); ++i) {
-        if (keep_flags_[i]) run_.push_back(bucket[i]);
+      for (std::size_t i = 0; i < chain_.size(); ++i) {
+        const QueueEntry* p = block(chain_[i]);
+        const std::size_t n = i + 1 == chain_.size() ? bucket.fill : kBlock;
+        for (std::size_t j = 0; j < n; ++j) {
+          if (keep_flags_[i * kBlock + j]) run_.push_back(p[j]);
+        }
+        free_.push_back(chain_[i]);
       }
+      bucket = Bucket{};
       stored_ += run_.size();
-      std::vector<QueueEntry>().swap(bucket);  // release: this bucket is now the run
       // A total order (vsum last), so the sorted run is one sequence whatever the sort does with ties.
       parallel.sort(run_.begin(), run_.end(), [](const QueueEntry& a, const QueueEntry& b) {
         return entry_less(a, b) || (a.key == b.key && a.v == b.v && a.vsum < b.vsum);
@@ -112,30 +126,99 @@ class CandidateQueue {
     }
     return true;
   }
-  // Drops every entry keep() rejects from the run, the heap and all buckets (bounds memory).
+  // Drops every entry keep() rejects from the run, the heap and all buckets (bounds memory); emptied blocks go
+  // back to the free list.
   template <typename Keep>
   void purge(Parallel& parallel, Keep&& keep) {
     run_.erase(run_.begin(), run_.begin() + static_cast<std::ptrdiff_t>(next_));
     next_ = 0;
-    std::vector<std::vector<QueueEntry>*> lists;
-    lists.push_back(&run_);
-    lists.push_back(&heap_);
-    for (auto& b : buckets_) {
-      if (!b.empty()) lists.push_back(&b);
-    }
-    parallel.for_ranges(lists.size(), 1, [&](std::size_t b, std::size_t e) {
-      for (std::size_t i = b; i < e; ++i) {
-        std::vector<QueueEntry>& l = *lists[i];
-        l.erase(std::remove_if(l.begin(), l.end(), [&](const QueueEntry& x) { return !keep(x); }), l.end());
-      }
-    });
-    stored_ = 0;
-    for (auto* l : lists) stored_ += l->size();
+    const auto drop = [&](std::vector<QueueEntry>& l) {
+      l.erase(std::remove_if(l.begin(), l.end(), [&](const QueueEntry& x) { return !keep(x); }), l.end());
+    };
+    drop(run_);
+    drop(heap_);
     heapify();
+    std::vector<std::uint32_t> used;
+    for (std::uint32_t b = 0; b < buckets_.size(); ++b) {
+      if (buckets_[b].size > 0) used.push_back(b);
+    }
+    std::vector<std::vector<std::uint32_t>> chains(used.size());
+    parallel.for_ranges(used.size(), 1, [&](std::size_t b, std::size_t e) {
+      for (std::size_t i = b; i < e; ++i) compact(buckets_[used[i]], chains[i], keep);
+    });
+    stored_ = run_.size() + heap_.size();
+    for (std::size_t i = 0; i < used.size(); ++i) {
+      const Bucket& bucket = buckets_[used[i]];
+      stored_ += bucket.size;
+      const std::size_t kept_blocks = (bucket.size + kBlock - 1) / kBlock;
+      free_.insert(free_.end(), chains[i].begin() + static_cast<std::ptrdiff_t>(kept_blocks), chains[i].end());
+    }
   }
 
  private:
   static constexpr std::uint32_t kNone = 0xffffffffu;
+  // Buckets are chains of fixed blocks from one pool with a free list: what a bucket drops (at refill, at purge)
+  // is reused by the next pushes, so memory follows the number of entries rather than each bucket's largest size.
+  static constexpr std::size_t kBlock = 1024;        // entries a block (16 KB)
+  static constexpr std::size_t kBlocksPerSlab = 32;  // blocks allocated together (512 KB)
+  struct Bucket {
+    std::uint32_t head = kNone;  // the newest block, holding `fill` entries; every older one in the chain is full
+    std::uint32_t fill = 0;
+    std::size_t size = 0;
+  };
+
+  QueueEntry* block(std::uint32_t id) const {
+    return slabs_[id / kBlocksPerSlab].get() + (id % kBlocksPerSlab) * kBlock;
+  }
+  void append(Bucket& b, const QueueEntry& e) {
+    if (b.head == kNone || b.fill == kBlock) {
+      if (free_.empty()) grow();
+      const std::uint32_t id = free_.back();
+      free_.pop_back();
+      next_block_[id] = b.head;
+      b.head = id;
+      b.fill = 0;
+    }
+    block(b.head)[b.fill++] = e;
+    ++b.size;
+  }
+  void grow() {
+    const auto first = static_cast<std::uint32_t>(slabs_.size() * kBlocksPerSlab);
+    slabs_.push_back(std::make_unique_for_overwrite<QueueEntry[]>(kBlock * kBlocksPerSlab));
+    next_block_.resize(next_block_.size() + kBlocksPerSlab, kNone);
+    for (std::uint32_t i = kBlocksPerSlab; i-- > 0;) free_.push_back(first + i);
+  }
+  // The bucket's blocks, oldest first (the head, partly filled, last).
+  void chain(const Bucket& b, std::vector<std::uint32_t>& out) const {
+    out.clear();
+    for (std::uint32_t id = b.head; id != kNone; id = next_block_[id]) out.push_back(id);
+    std::reverse(out.begin(), out.end());
+  }
+  // Slides the entries keep() accepts to the front of the bucket's chain; `ids` gets the whole chain, oldest
+  // first, and the blocks past the new size are the caller's to free.
+  template <typename Keep>
+  void compact(Bucket& b, std::vector<std::uint32_t>& ids, Keep& keep) {
+    chain(b, ids);
+    std::size_t w = 0;
+    for (std::size_t i = 0; i < ids.size(); ++i) {
+      const QueueEntry* p = block(ids[i]);
+      const std::size_t n = i + 1 == ids.size() ? b.fill : kBlock;
+      for (std::size_t j = 0; j < n; ++j) {
+        if (!keep(p[j])) continue;
+        block(ids[w / kBlock])[w % kBlock] = p[j];
+        ++w;
+      }
+    }
+    b.size = w;
+    if (w == 0) {
+      b.head = kNone;
+      b.fill = 0;
+      return;
+    }
+    const std::size_t used = (w + kBlock - 1) / kBlock;
+    b.head = ids[used - 1];
+    b.fill = static_cast<std::uint32_t>(w - (used - 1) * kBlock);
+  }
 
   // Whether top() is the run's next entry (else the heap's top).
   bool from_run() const { return next_ < run_.size() && (heap_.empty() || !entry_less(heap_.front(), run_[next_])); }
@@ -172,7 +255,11 @@ class CandidateQueue {
     heap_[i] = e;
   }
 
-  std::vector<std::vector<QueueEntry>> buckets_;
+  std::vector<Bucket> buckets_;
+  std::vector<std::unique_ptr<QueueEntry[]>> slabs_;  // the blocks, kBlocksPerSlab at a time
+  std::vector<std::uint32_t> next_block_;             // per block: the next older block of its bucket
+  std::vector<std::uint32_t> free_;                   // blocks in no bucket
+  std::vector<std::uint32_t> chain_;                  // refill(): the active bucket's blocks
   std::vector<QueueEntry> run_;   // the active bucket, sorted; entries before next_ are popped
   std::size_t next_ = 0;
   std::vector<QueueEntry> heap_;  // pushed at or below the active bucket since it became the run

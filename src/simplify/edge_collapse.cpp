@@ -47,9 +47,9 @@ namespace {
 constexpr std::size_t kBatchDivisor = 128;
 constexpr std::size_t kMaxBatch = 1024;
 
-// Heap entries superseded by newer ones stay in the heap until popped; when the heap is this many times the
-// live edge count, drop them all at once (bounds memory; O(n) rebuild).
-constexpr std::size_t kPurgeFactor = 3;
+// Queue entries superseded by newer ones stay queued until popped; when the queue holds this many times the
+// live edge count, drop them all at once (bounds memory: at 1.5 the queue's peak stays near its first fill).
+constexpr double kPurgeFactor = 1.5;
 
 // select(): candidates whose endpoints' stars together exceed this many faces are not gathered ahead in
 // parallel; their conflict test looks at the endpoints first (a high-valence vertex is in every neighbouring
@@ -151,29 +151,34 @@ class GreedyEngine {
   // Every allowed edge once (u < v), evaluated in parallel over fixed chunks of vertices (not per thread) and
   // queued in chunk order: deterministic.
   void collect() {
-    constexpr std::size_t kChunk = 4096;
+    constexpr std::size_t kChunk = 4096, kChunksAtOnce = 16;
     const std::size_t nv = cm_.vertex_count();
-    std::vector<std::vector<QueueEntry>> chunks((nv + kChunk - 1) / kChunk);
-    parallel_.for_ranges(chunks.size(), 1, [&](std::size_t cb, std::size_t ce) {
-      Scratch& s = scratch_.local();
-      for (std::size_t c = cb; c < ce; ++c) {
-        std::vector<QueueEntry>& out = chunks[c];
-        const std::size_t vend = std::min(nv, (c + 1) * kChunk);
-        out.reserve(3 * (vend - c * kChunk) + 64);  // about 3 edges per vertex on a closed surface
-        for (std::size_t v = c * kChunk; v < vend; ++v) {
-          const auto u = static_cast<std::uint32_t>(v);
-          cm_.ring(u, s.ring);
-          for (std::uint32_t w : s.ring) cm_.prefetch(w);
-          for (std::uint32_t w : s.ring) {
-            if (w <= u || cm_.rule(u, w) == EdgeRule::forbidden) continue;
-            out.push_back(entry(u, w));
+    const std::size_t nchunks = (nv + kChunk - 1) / kChunk;
+    // A few chunks at a time, their buffers reused: the queue is the only full-size copy of the entries.
+    std::vector<std::vector<QueueEntry>> chunks(std::min(nchunks, kChunksAtOnce));
+    for (std::size_t first = 0; first < nchunks; first += chunks.size()) {
+      const std::size_t n = std::min(chunks.size(), nchunks - first);
+      parallel_.for_ranges(n, 1, [&](std::size_t cb, std::size_t ce) {
+        Scratch& s = scratch_.local();
+        for (std::size_t c = cb; c < ce; ++c) {
+          std::vector<QueueEntry>& out = chunks[c];
+          out.clear();
+          const std::size_t vbegin = (first + c) * kChunk, vend = std::min(nv, vbegin + kChunk);
+          out.reserve(3 * (vend - vbegin) + 64);  // about 3 edges per vertex on a closed surface
+          for (std::size_t v = vbegin; v < vend; ++v) {
+            const auto u = static_cast<std::uint32_t>(v);
+            cm_.ring(u, s.ring);
+            for (std::uint32_t w : s.ring) cm_.prefetch(w);
+            for (std::uint32_t w : s.ring) {
+              if (w <= u || cm_.rule(u, w) == EdgeRule::forbidden) continue;
+              out.push_back(entry(u, w));
+            }
           }
         }
+      });
+      for (std::size_t c = 0; c < n; ++c) {
+        for (const QueueEntry& e : chunks[c]) queue_.push(e);
       }
-    });
-    for (std::vector<QueueEntry>& chunk : chunks) {
-      for (const QueueEntry& e : chunk) queue_.push(e);
-      std::vector<QueueEntry>().swap(chunk);
     }
   }
 

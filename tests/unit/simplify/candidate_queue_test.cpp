@@ -101,5 +101,30 @@ TEST(CandidateQueue, RefillAndPurgeDropWhatKeepRejects) {
   drain(queue, parallel, even, reference);
 }
 
+// Buckets of several blocks each, a purge that empties most of them, then as many pushes into other buckets:
+// the freed blocks take the new entries (no new storage), and everything comes out in order, on two threads.
+TEST(CandidateQueue, PurgedBlocksAreReusedByLaterPushes) {
+  Parallel parallel(2);
+  CandidateQueue queue;
+  std::set<Key> reference;
+  auto kept = [](const QueueEntry& e) { return e.vsum == 1 || e.v % 3 == 0; };
+  for (std::uint32_t id = 0; id < 30000; ++id) {
+    const QueueEntry e = make_entry(cost_bits(1.0 + id % 3), id, id, 0);  // three buckets, ~10 blocks each
+    queue.push(e);
+    if (kept(e)) reference.insert(key_of(e));
+  }
+  const std::size_t storage = queue.storage_entries();
+  EXPECT_GE(storage, 30000u);
+  queue.purge(parallel, kept);
+  EXPECT_EQ(queue.size(), reference.size());
+  for (std::uint32_t id = 30000; id < 50000; ++id) {
+    const QueueEntry e = make_entry(cost_bits(8.0 + 8.0 * (id % 2)), id, id, 1);  // two other buckets
+    queue.push(e);
+    reference.insert(key_of(e));
+  }
+  EXPECT_EQ(queue.storage_entries(), storage);
+  drain(queue, parallel, kept, reference);
+}
+
 }  // namespace
 }  // namespace lodforge::collapse
