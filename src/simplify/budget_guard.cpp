@@ -169,7 +169,7 @@ void CollapseMesh::setup_guard(const GuardReference& g, Parallel& parallel) {
   const bool start_faces = g.origins.size() != ns && !g.start_faces.empty() && g.start_faces.size() <= ns;
   if (g.origins.size() == ns || start_faces) {
     slot_of.assign(src_.face_count(), kInvalidIndex);
-    for (std::size_t f = 0; f < nf; ++f) slot_of[tri_source_[f]] = static_cast<std::uint32_t>(f);
+    for (std::size_t f = 0; f < nf; ++f) slot_of[source_face(f)] = static_cast<std::uint32_t>(f);
   }
   if (g.origins.size() == ns) {
     for (std::size_t i = 0; i < ns; ++i) {

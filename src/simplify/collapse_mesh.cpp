@@ -12,6 +12,9 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
+#include <bit>
+#include <cassert>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -139,21 +142,33 @@ CollapseMesh::CollapseMesh(const Mesh& m, const SimplifyOptions& options, Parall
   });
   std::uint32_t total = 0;
   for (std::size_t c = 0; c <= chunks; ++c) total += std::exchange(chunk_first[c], total);
+  // One wedge per vertex, numbered as the vertices: the corners' wedges are their vertices (tri_wedge_ stays
+  // empty). All faces valid: each working face is its input face (tri_source_ stays empty).
+  const bool own_wedges = nw == nv && [&] {
+    std::atomic<bool> same{true};
+    parallel.for_ranges(nw, 65536, [&](std::size_t b, std::size_t e) {
+      for (std::size_t w = b; w < e && same.load(std::memory_order_relaxed); ++w) {
+        if (m.wedge_vertex[w] != w) same.store(false, std::memory_order_relaxed);
+      }
+    });
+    return same.load();
+  }();
   tri_.resize(3 * std::size_t{total});
-  tri_wedge_.resize(3 * std::size_t{total});
-  tri_source_.resize(total);
+  if (!own_wedges) tri_wedge_.resize(3 * std::size_t{total});
+  if (total != nf) tri_source_.resize(total);
   parallel.for_ranges(chunks, 1, [&](std::size_t cb, std::size_t ce) {
     for (std::size_t c = cb; c < ce; ++c) {
       std::uint32_t out = chunk_first[c], w[3], v[3];
       for (std::size_t f = c * kFaceChunk; f < std::min(nf, (c + 1) * kFaceChunk); ++f) {
         if (!valid(f, w, v)) continue;
         std::copy(v, v + 3, &tri_[3 * std::size_t{out}]);
-        std::copy(w, w + 3, &tri_wedge_[3 * std::size_t{out}]);
-        tri_source_[out++] = static_cast<std::uint32_t>(f);
+        if (!tri_wedge_.empty()) std::copy(w, w + 3, &tri_wedge_[3 * std::size_t{out}]);
+        if (!tri_source_.empty()) tri_source_[out] = static_cast<std::uint32_t>(f);
+        ++out;
       }
     }
   });
-  alive_faces_ = tri_source_.size();
+  alive_faces_ = total;
 
   // Vertex → faces lists (counting sort: each list in face order).
   size_.assign(nv, 0);
@@ -264,26 +279,19 @@ void CollapseMesh::setup(Parallel& parallel) {
   const bool lock_border = options_.border_mode == BorderMode::lock;
   lock_reason_.assign(nv, 0);
 
-  // Face planes once per face (unit normal, offset, area); each vertex then sums its faces' quadrics.
-  // Plain doubles and no value-initialisation: every entry is written below.
-  struct FacePlane {
-    double n[3], d, area;
+  // Each face's plane quadric (unit normal, offset, area), computed at each of its corners as the vertex sums
+  // its faces: no per-face array (40 bytes a face at the set-up's peak), and the same arithmetic, so the same
+  // bits, at every corner.
+  auto face_quadric = [&](std::uint32_t f) {
+    const std::uint32_t* t = &tri_[3 * std::size_t{f}];
+    const Vec3d n = cross(vx_[t[1]].pos - vx_[t[0]].pos, vx_[t[2]].pos - vx_[t[0]].pos);
+    const double len = length(n);
+    if (!(len > 0.0 && std::isfinite(len))) return Quadric{};  // degenerate or non-finite: no surface
+    const Vec3d unit = n * (1.0 / len);
+    Quadric fq = Quadric::from_plane(unit, -dot(unit, vx_[t[0]].pos), 0.5 * len);
+    fq.weight = 0.5 * len;
+    return fq;
   };
-  const std::size_t nf = tri_source_.size();
-  const std::unique_ptr<FacePlane[]> planes(new FacePlane[nf]);
-  parallel.for_ranges(nf, 4096, [&](std::size_t b, std::size_t e) {
-    for (std::size_t f = b; f < e; ++f) {
-      const std::uint32_t* t = &tri_[3 * f];
-      const Vec3d n = cross(vx_[t[1]].pos - vx_[t[0]].pos, vx_[t[2]].pos - vx_[t[0]].pos);
-      const double len = length(n);
-      if (len > 0.0 && std::isfinite(len)) {
-        const Vec3d unit = n * (1.0 / len);
-        planes[f] = {{unit[0], unit[1], unit[2]}, -dot(unit, vx_[t[0]].pos), 0.5 * len};
-      } else {
-        planes[f] = {{0.0, 0.0, 0.0}, 0.0, 0.0};  // degenerate or non-finite: no surface
-      }
-    }
-  });
 
   // Seam constraint planes per vertex as well, where seams may relax and any vertex has several wedges.
   if (last_stage_ != SeamStage::strict && src_.wedge_count() > nv) seam_q_.assign(nv, Quadric{});
@@ -317,10 +325,7 @@ void CollapseMesh::setup(Parallel& parallel) {
         s.spokes[2 * i + 1] = (std::uint64_t{t[kPrev[j]]} << 32) | (2 * i + 1);
         const std::uint32_t kc = key(3 * std::size_t{fl[i]} + j);
         if (nkeys < 3 && kc != keys[0] && (nkeys < 2 || kc != keys[1])) keys[nkeys++] = kc;
-        const FacePlane& pl = planes[fl[i]];
-        Quadric fq = Quadric::from_plane(Vec3d{{pl.n[0], pl.n[1], pl.n[2]}}, pl.d, pl.area);
-        fq.weight = pl.area;
-        q += fq;
+        q += face_quadric(fl[i]);
       }
       if (nkeys > 1) state_[v] |= kSeam;
       const VertexKind seam_kind = nkeys >= 3 ? VertexKind::complex : VertexKind::seam;
@@ -427,7 +432,7 @@ void CollapseMesh::setup(Parallel& parallel) {
   // Faces touching a frozen vertex: their other vertices lock too (any collapse would test or move a face
   // with a non-finite corner).
   const bool any_frozen = std::find(kind_.begin(), kind_.end(), VertexKind::frozen) != kind_.end();
-  for (std::size_t f = 0; any_frozen && f < nf; ++f) {
+  for (std::size_t f = 0; any_frozen && f < face_slots(); ++f) {
     const std::uint32_t* t = &tri_[3 * f];
     if (kind_[t[0]] == VertexKind::frozen || kind_[t[1]] == VertexKind::frozen || kind_[t[2]] == VertexKind::frozen) {
       for (int i = 0; i < 3; ++i) {
@@ -915,21 +920,30 @@ std::size_t CollapseMesh::list_room(const Check& c) const {
 // later moves to the end again). Contents and order of every list are unchanged, so nothing else notices.
 void CollapseMesh::make_room(std::size_t entries) {
   if (pool_.size() + entries <= pool_.capacity()) return;
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> lists;  // (begin, vertex)
+  // Where the live lists start, as one bit per pool entry (no list of (begin, vertex) pairs to sort).
+  std::vector<std::uint64_t> starts((pool_.size() + 63) / 64, 0);
   for (std::uint32_t v = 0; v < size_.size(); ++v) {
     if (size_[v] > 0) {
-      lists.emplace_back(begin_[v], v);
+      starts[begin_[v] / 64] |= std::uint64_t{1} << (begin_[v] % 64);
     } else {
       capacity_[v] = 0;  // dead or bare: never gets faces again
     }
   }
-  std::sort(lists.begin(), lists.end());
   std::uint32_t out = 0;
-  for (const auto& [begin, v] : lists) {
-    std::copy(pool_.begin() + begin, pool_.begin() + begin + size_[v], pool_.begin() + out);  // out <= begin
-    begin_[v] = out;
-    capacity_[v] = size_[v];
-    out += size_[v];
+  for (std::size_t word = 0; word < starts.size(); ++word) {
+    for (std::uint64_t bits = starts[word]; bits != 0; bits &= bits - 1) {
+      const auto begin = static_cast<std::uint32_t>(64 * word + std::countr_zero(bits));
+      // The list's owner is the corner of its first face whose live list starts here (live lists are disjoint).
+      const std::uint32_t* t = &tri_[3 * std::size_t{pool_[begin]}];
+      std::uint32_t v = t[0];
+      for (int j = 1; j < 3; ++j) {
+        if (size_[t[j]] > 0 && begin_[t[j]] == begin) v = t[j];
+      }
+      std::copy(pool_.begin() + begin, pool_.begin() + begin + size_[v], pool_.begin() + out);  // out <= begin
+      begin_[v] = out;
+      capacity_[v] = size_[v];
+      out += size_[v];
+    }
   }
   pool_.resize(out);
 }
@@ -946,7 +960,7 @@ void CollapseMesh::apply(const Check& c, const Vec3d& x, Scratch& s) {
   for (std::uint32_t i = 0; i < k; ++i) {
     const std::uint32_t f = c.edge_faces[i];
     std::uint32_t* t = &tri_[3 * std::size_t{f}];
-    const std::uint32_t* w = &tri_wedge_[3 * std::size_t{f}];
+    const std::uint32_t* w = face_wedges(f);
     const int ja = corner_of(t, a), jb = corner_of(t, b);
     ka[i] = key(3 * std::size_t{f} + ja);
     wb[i] = w[jb];
@@ -985,7 +999,8 @@ void CollapseMesh::apply(const Check& c, const Vec3d& x, Scratch& s) {
         wedge_vertex_[tri_wedge_[corner]] = b;  // the corner's wedge goes with it, values and key unchanged
       } else {
         const int side = (k == 2 && (!seam || key(corner) == ka[1])) ? 1 : 0;
-        tri_wedge_[corner] = wb[side];
+        assert(!tri_wedge_.empty() || wb[side] == b);
+        if (!tri_wedge_.empty()) tri_wedge_[corner] = wb[side];  // else wb[side] is b: the vertex is the wedge
         if (!tri_key_.empty()) tri_key_[corner] = kb[side];
       }
       s.ring.push_back(f);
@@ -1077,9 +1092,9 @@ void CollapseMesh::ring(std::uint32_t v, std::vector<std::uint32_t>& out) const 
 Mesh CollapseMesh::output() const {
   const Mesh& m = src_;
   std::vector<std::uint32_t> wedge_map(m.wedge_count(), kInvalidIndex), vertices;
-  for (std::size_t f = 0; f < tri_source_.size(); ++f) {
+  for (std::size_t f = 0; f < face_slots(); ++f) {
     if (tri_[3 * f] == kInvalidIndex) continue;
-    for (int j = 0; j < 3; ++j) wedge_map[tri_wedge_[3 * f + j]] = 0;
+    for (int j = 0; j < 3; ++j) wedge_map[corner_wedge(3 * f + j)] = 0;
   }
   Mesh out = compact_vertices_and_wedges(m, wedge_map, vertices,
                                          {.wedge_vertex = reattached_ ? &wedge_vertex_ : nullptr,
@@ -1097,11 +1112,11 @@ Mesh CollapseMesh::output() const {
   out.corner_wedge.reserve(3 * alive_faces_);
   out.face_material.reserve(alive_faces_);
   const bool groups = m.face_group.size() == m.face_count();
-  for (std::size_t f = 0; f < tri_source_.size(); ++f) {
+  for (std::size_t f = 0; f < face_slots(); ++f) {
     if (tri_[3 * f] == kInvalidIndex) continue;
-    const std::uint32_t w[3] = {wedge_map[tri_wedge_[3 * f]], wedge_map[tri_wedge_[3 * f + 1]],
-                                wedge_map[tri_wedge_[3 * f + 2]]};
-    const std::uint32_t sf = tri_source_[f];
+    const std::uint32_t* fw = face_wedges(f);
+    const std::uint32_t w[3] = {wedge_map[fw[0]], wedge_map[fw[1]], wedge_map[fw[2]]};
+    const std::uint32_t sf = source_face(f);
     out.add_face(w, 3, sf < m.face_material.size() ? m.face_material[sf] : 0);
     if (groups) out.face_group.push_back(m.face_group[sf]);
   }

@@ -451,7 +451,7 @@ class CollapseMesh {
   // x as the output will write it (rounded to float in model units), in normalised coordinates.
   Vec3d output_rounded(const Vec3d& x) const;
   std::uint32_t face_material(std::uint32_t f) const {
-    const std::uint32_t sf = tri_source_[f];
+    const std::uint32_t sf = source_face(f);
     return sf < src_.face_material.size() ? src_.face_material[sf] : 0u;
   }
   // Distinct keys around v, counted up to 3.
@@ -465,7 +465,18 @@ class CollapseMesh {
   // faces, and a list may start at its end.
   const std::uint32_t* star(std::uint32_t v) const { return pool_.data() + begin_[v]; }
   std::uint32_t* star(std::uint32_t v) { return pool_.data() + begin_[v]; }
-  std::uint32_t key(std::size_t corner) const { return tri_key_.empty() ? tri_wedge_[corner] : tri_key_[corner]; }
+  std::uint32_t key(std::size_t corner) const { return tri_key_.empty() ? corner_wedge(corner) : tri_key_[corner]; }
+  // Face f's corner wedges. Empty tri_wedge_: each vertex is its one wedge (see tri_wedge_).
+  const std::uint32_t* face_wedges(std::size_t f) const {
+    return tri_wedge_.empty() ? &tri_[3 * f] : &tri_wedge_[3 * f];
+  }
+  std::uint32_t corner_wedge(std::size_t corner) const {
+    return tri_wedge_.empty() ? tri_[corner] : tri_wedge_[corner];
+  }
+  // The input face of working face f.
+  std::uint32_t source_face(std::size_t f) const {
+    return tri_source_.empty() ? static_cast<std::uint32_t>(f) : tri_source_[f];
+  }
   bool flip_ok(const Vec3d& old_p, const Vec3d& x, const Vec3d& p, const Vec3d& q) const;
   bool wedges_carry_over(std::uint32_t a, std::uint32_t b, const Check& c) const;
   // The keys of a's and b's corners in the edge's faces; false where the faces pair them inconsistently (a
@@ -551,8 +562,11 @@ class CollapseMesh {
   // Written whole by the constructor's parallel pass, so left unconstructed by resize().
   using FaceArray = std::vector<std::uint32_t, UnconstructedAllocator<std::uint32_t>>;
   FaceArray tri_;         // 3 vertices per face; tri_[3f] == kInvalidIndex: dead
-  FaceArray tri_wedge_;   // 3 wedges per face
-  FaceArray tri_source_;  // input face of each working face
+  // 3 wedges per face; empty while every corner's wedge is its vertex (one wedge per vertex, wedge id = vertex
+  // id: meshes with positions and per-vertex attributes only), which collapses keep true until a seam stage may
+  // move a wedge to another vertex (relax() then fills it). Saves 12 bytes a triangle on large scans.
+  FaceArray tri_wedge_;
+  FaceArray tri_source_;  // input face of each working face; empty when that is face f itself (4 bytes a face)
   std::vector<std::uint32_t> begin_, size_, capacity_;  // per-vertex face lists in pool_
   std::vector<std::uint32_t> pool_;
   std::size_t alive_faces_ = 0;

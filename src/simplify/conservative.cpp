@@ -309,7 +309,7 @@ void CollapseMesh::setup_rim() {
   const std::size_t nv = vx_.size();
   std::vector<std::uint32_t> ends;  // per vertex: neighbours met once (rim edges), as collected
   Vec3d normal{};
-  for (std::size_t f = 0; f < tri_source_.size(); ++f) {
+  for (std::size_t f = 0; f < face_slots(); ++f) {
     const std::uint32_t* t = &tri_[3 * f];
     const Vec3d n = cross(vx_[t[1]].pos - vx_[t[0]].pos, vx_[t[2]].pos - vx_[t[0]].pos);
     if (finite3(n)) normal = normal + n;
@@ -376,7 +376,7 @@ void CollapseMesh::setup_conservative() {
   if (!(cons_band_ > 0.0)) cons_band_ = 1e-12;
   setup_rim();
   double vol = 0.0;
-  for (std::size_t f = 0; f < tri_source_.size(); ++f) {
+  for (std::size_t f = 0; f < face_slots(); ++f) {
     const std::uint32_t* t = &tri_[3 * f];
     vol += dot(cross(vx_[t[0]].pos, vx_[t[1]].pos), vx_[t[2]].pos);
   }

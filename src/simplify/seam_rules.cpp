@@ -49,9 +49,9 @@ bool same_direction(const auto& a, const auto& b) {
 // both sides of a material boundary gets one key per side); relax() materialises them for its stages.
 void CollapseMesh::setup_keys() {
   const Mesh& m = src_;
-  const std::size_t nw = m.wedge_count(), nv = m.vertex_count(), nf = tri_source_.size();
+  const std::size_t nw = m.wedge_count(), nv = m.vertex_count(), nf = face_slots();
   auto material = [&](std::size_t f) {
-    const std::uint32_t sf = tri_source_[f];
+    const std::uint32_t sf = source_face(f);
     return sf < m.face_material.size() ? m.face_material[sf] : 0u;
   };
   bool several = false;
@@ -125,9 +125,9 @@ void CollapseMesh::setup_keys() {
   if (!several) return;
 
   // Dense ids for (class, material) pairs.
-  std::vector<std::uint64_t> pairs(tri_wedge_.size());
-  for (std::size_t c = 0; c < tri_wedge_.size(); ++c) {
-    const std::uint32_t w = tri_wedge_[c];
+  std::vector<std::uint64_t> pairs(tri_.size());
+  for (std::size_t c = 0; c < tri_.size(); ++c) {
+    const std::uint32_t w = corner_wedge(c);
     pairs[c] = (std::uint64_t{w} << 32) | material(c / 3);
   }
   std::vector<std::uint64_t> sorted(pairs);
@@ -148,7 +148,7 @@ void CollapseMesh::setup_keys() {
 // by sqrt(λ) × sqrt(Σ 3-D area / Σ UV area) (its texel density), so every scaled attribute is a length.
 void CollapseMesh::setup_attributes(Parallel& parallel) {
   const Mesh& m = src_;
-  const std::size_t nf = tri_source_.size(), nw = m.wedge_count(), nv = vx_.size();
+  const std::size_t nf = face_slots(), nw = m.wedge_count(), nv = vx_.size();
   const AttributeWeights& aw = options_.attribute_weights;
   bool metric = !normals_.empty() || !skin_.empty();  // anything below that needs the areas
   for (const auto& set : uvs_) metric |= !set.empty();
@@ -161,7 +161,7 @@ void CollapseMesh::setup_attributes(Parallel& parallel) {
   std::vector<double> uv_area(uvs_.size(), 0.0);
   for (std::size_t f = 0; f < nf; ++f) {
     const std::uint32_t* t = &tri_[3 * f];
-    const std::uint32_t* w = &tri_wedge_[3 * f];
+    const std::uint32_t* w = face_wedges(f);
     const Vec3d p0 = vx_[t[0]].pos, p1 = vx_[t[1]].pos, p2 = vx_[t[2]].pos;
     if (!finite3(p0) || !finite3(p1) || !finite3(p2)) continue;
     area += 0.5 * length(cross(p1 - p0, p2 - p0));
@@ -225,7 +225,7 @@ void CollapseMesh::setup_attributes(Parallel& parallel) {
         const double weight = fb.area * paint;
         if (!(weight > 0.0) || !std::isfinite(weight)) continue;
         const std::uint32_t* t = &tri_[3 * std::size_t{fl[i]}];
-        const std::uint32_t* w = &tri_wedge_[3 * std::size_t{fl[i]}];
+        const std::uint32_t* w = face_wedges(fl[i]);
         double* s0 = corner_values.data();
         double* s1 = s0 + dims;
         double* s2 = s1 + dims;
@@ -262,7 +262,7 @@ void CollapseMesh::add_attribute_quadrics(std::uint32_t u, std::uint32_t v, Quad
   if (((state_[u] | state_[v]) & kSeam) == 0 && stage_ == SeamStage::strict) {
     auto only_wedge = [&](std::uint32_t x) {
       const std::size_t f3 = 3 * std::size_t{pool_[begin_[x]]};
-      return tri_wedge_[f3 + corner_of(&tri_[f3], x)];
+      return corner_wedge(f3 + corner_of(&tri_[f3], x));
     };
     const std::uint32_t wu = only_wedge(u), wv = only_wedge(v);
     q += reduce_merged_attributes(wq_[wu], grads(wu), wq_[wv], grads(wv));
@@ -280,7 +280,7 @@ void CollapseMesh::add_attribute_quadrics(std::uint32_t u, std::uint32_t v, Quad
     const std::uint32_t* fl = star(u);
     for (std::uint32_t i = 0; i < size_[u]; ++i) {
       const std::uint32_t* t = &tri_[3 * std::size_t{fl[i]}];
-      const std::uint32_t* w = &tri_wedge_[3 * std::size_t{fl[i]}];
+      const std::uint32_t* w = face_wedges(fl[i]);
       const std::uint32_t wc = w[corner_of(t, u)];
       note(wu, nu, wc);
       if (k < 2 && (t[0] == v || t[1] == v || t[2] == v)) {
@@ -292,7 +292,7 @@ void CollapseMesh::add_attribute_quadrics(std::uint32_t u, std::uint32_t v, Quad
     const std::uint32_t* fv = star(v);
     for (std::uint32_t i = 0; i < size_[v]; ++i) {
       const std::uint32_t* t = &tri_[3 * std::size_t{fv[i]}];
-      note(wv, nv, tri_wedge_[3 * std::size_t{fv[i]} + corner_of(t, v)]);
+      note(wv, nv, corner_wedge(3 * std::size_t{fv[i]} + corner_of(t, v)));
     }
   }
   if (k == 2 && pu[0] == pu[1] && pv[0] == pv[1]) k = 1;
@@ -440,7 +440,13 @@ constexpr double kCompatibleCreaseCos = 0.8660254037844387;
 bool CollapseMesh::relax() {
   if (stage_ >= last_stage_) return false;
   stage_ = static_cast<SeamStage>(static_cast<int>(stage_) + 1);
-  const std::size_t nf = tri_source_.size(), nv = vx_.size();
+  // From here a collapse may move a wedge to another vertex: corners need wedge ids of their own. Every live
+  // corner's wedge is still its vertex (dead faces' wedges are never read).
+  if (tri_wedge_.empty()) {
+    tri_wedge_.resize(tri_.size());
+    std::copy(tri_.begin(), tri_.end(), tri_wedge_.begin());
+  }
+  const std::size_t nf = face_slots(), nv = vx_.size();
   if (material_faces_.empty()) {
     std::uint32_t most = 0;
     for (std::size_t f = 0; f < nf; ++f) most = std::max(most, face_material(static_cast<std::uint32_t>(f)));
@@ -502,7 +508,7 @@ bool CollapseMesh::relax() {
       const std::uint32_t* fl = star(v);
       for (std::uint32_t i = 0; i < size_[v]; ++i) {
         const std::size_t f3 = 3 * std::size_t{fl[i]};
-        wedges.push_back(tri_wedge_[f3 + corner_of(&tri_[f3], v)]);
+        wedges.push_back(corner_wedge(f3 + corner_of(&tri_[f3], v)));
       }
       std::sort(wedges.begin(), wedges.end());
       wedges.erase(std::unique(wedges.begin(), wedges.end()), wedges.end());
@@ -521,7 +527,7 @@ bool CollapseMesh::relax() {
     for (std::size_t f = 0; f < nf; ++f) {
       if (tri_[3 * f] == kInvalidIndex) continue;
       const std::uint32_t mat = by_material ? face_material(static_cast<std::uint32_t>(f)) : 0u;
-      for (int j = 0; j < 3; ++j) pairs[3 * f + j] = (std::uint64_t{rep[tri_wedge_[3 * f + j]]} << 32) | mat;
+      for (int j = 0; j < 3; ++j) pairs[3 * f + j] = (std::uint64_t{rep[corner_wedge(3 * f + j)]} << 32) | mat;
     }
     std::vector<std::uint64_t> sorted(pairs);
     std::sort(sorted.begin(), sorted.end());
@@ -568,14 +574,14 @@ void CollapseMesh::map_wedges(std::uint32_t a, std::uint32_t b, const Check& c, 
     const std::size_t f3 = 3 * std::size_t{c.edge_faces[i]};
     const std::uint32_t* t = &tri_[f3];
     ka[i] = key(f3 + corner_of(t, a));
-    wb[i] = tri_wedge_[f3 + corner_of(t, b)];
+    wb[i] = corner_wedge(f3 + corner_of(t, b));
   }
   s.wedge_map.clear();
   const std::uint32_t* fl = star(a);
   for (std::uint32_t i = 0; i < size_[a]; ++i) {
     const std::size_t f3 = 3 * std::size_t{fl[i]};
     const std::size_t corner = f3 + corner_of(&tri_[f3], a);
-    const std::uint32_t wx = tri_wedge_[corner];
+    const std::uint32_t wx = corner_wedge(corner);
     const std::uint32_t k = key(corner);
     std::uint32_t wt = (c.edge_face_count == 2 && k == ka[1]) ? wb[1] : wb[0];
     if (c.reattach && k != ka[0] && (c.edge_face_count < 2 || k != ka[1])) wt = wx;  // goes with the corner
@@ -665,7 +671,7 @@ bool CollapseMesh::uv_ok(std::uint32_t a, std::uint32_t b, const Check& c, const
       for (std::uint32_t i = 0; i < size_[w]; ++i) {
         const std::uint32_t f = fl[i];
         if (f == c.edge_faces[0] || f == c.edge_faces[1]) continue;
-        const std::uint32_t* tw = &tri_wedge_[3 * std::size_t{f}];
+        const std::uint32_t* tw = face_wedges(f);
         const int j = corner_of(&tri_[3 * std::size_t{f}], w);
         const std::uint32_t wc = tw[j];
         const std::uint32_t wt = w == a ? target_of(wc) : wc;

@@ -385,6 +385,58 @@ TEST(EdgeCollapse, SeamsStayOnTheirSide) {
   }
 }
 
+// The same mesh with its wedges numbered backwards (wedge w of vertex n - 1 - w), per-wedge normals moved with
+// them.
+Mesh with_reversed_wedges(const Mesh& m) {
+  Mesh r = m;
+  const auto nw = static_cast<std::uint32_t>(m.wedge_count());
+  for (std::uint32_t w = 0; w < nw; ++w) r.wedge_vertex[nw - 1 - w] = m.wedge_vertex[w];
+  for (std::uint32_t& c : r.corner_wedge) c = nw - 1 - c;
+  for (std::uint32_t w = 0; w < m.normals.size(); ++w) r.normals[nw - 1 - w] = m.normals[w];
+  return r;
+}
+
+std::vector<Vec3f> corner_positions(const Mesh& m) {
+  std::vector<Vec3f> out;
+  for (std::size_t c = 0; c < m.corner_count(); ++c) out.push_back(m.positions[m.corner_vertex(c)]);
+  return out;
+}
+
+// Where each vertex is its one wedge (wedge id = vertex id) the engine keeps no per-corner wedge array and,
+// with every face valid, no source-face array; numbered any other way it takes the general path. Both must
+// make the same LOD: plain, with per-vertex normals, and with two materials at a target the strict seam stage
+// cannot reach (the relaxed stages then start from the shortcut).
+TEST(EdgeCollapse, OneWedgePerVertexNeedsNoWedgeArray) {
+  Mesh plain = make_bumpy_sphere(30, 40);
+  ASSERT_EQ(plain.wedge_count(), plain.vertex_count());
+  for (std::uint32_t w = 0; w < plain.wedge_count(); ++w) ASSERT_EQ(plain.wedge_vertex[w], w);
+  Mesh shaded = plain;
+  for (const Vec3f& p : plain.positions) shaded.normals.push_back(p * (1.0f / std::sqrt(dot(p, p))));
+  Mesh painted = plain;  // three materials in small patches: most vertices sit where several meet
+  painted.materials.push_back(MaterialSlot{.name = "second"});
+  painted.materials.push_back(MaterialSlot{.name = "third"});
+  for (std::size_t f = 0; f < painted.face_count(); ++f) {
+    painted.face_material[f] = static_cast<std::uint32_t>(f / 5 % 3);
+  }
+  struct Case {
+    const Mesh* mesh;
+    double ratio;
+  };
+  for (const Case& c : {Case{&plain, 0.1}, Case{&shaded, 0.1}, Case{&painted, 0.1}, Case{&painted, 0.002}}) {
+    const SimplifyResult own = simplify(*c.mesh, {.target_ratio = c.ratio});
+    const SimplifyResult general = simplify(with_reversed_wedges(*c.mesh), {.target_ratio = c.ratio});
+    ASSERT_GT(own.collapses, 0u);
+    EXPECT_EQ(own.collapses, general.collapses);
+    EXPECT_EQ(own.seam_stage, general.seam_stage);
+    EXPECT_EQ(corner_positions(own.mesh), corner_positions(general.mesh));
+    EXPECT_EQ(own.mesh.face_material, general.mesh.face_material);
+    EXPECT_EQ(own.mesh.normals.size(), own.mesh.wedge_count() * !c.mesh->normals.empty());
+    EXPECT_TRUE(validate(own.mesh).ok());
+  }
+
+  EXPECT_GT(simplify(painted, {.target_ratio = 0.002}).seam_stage, SeamStage::strict);
+}
+
 TEST(EdgeCollapse, KeepsMaterialsAndGroupsPerFace) {
   Mesh grid = make_bumpy_grid(16);
   grid.materials.push_back(MaterialSlot{.name = "second"});
