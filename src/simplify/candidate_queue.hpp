@@ -159,8 +159,8 @@ class CandidateQueue {
   static constexpr std::uint32_t kNone = 0xffffffffu;
   // Buckets are chains of fixed blocks from one pool with a free list: what a bucket drops (at refill, at purge)
   // is reused by the next pushes, so memory follows the number of entries rather than each bucket's largest size.
-  static constexpr std::size_t kBlock = 1024;        // entries a block (16 KB)
-  static constexpr std::size_t kBlocksPerSlab = 32;  // blocks allocated together (512 KB)
+  static constexpr std::size_t kBlock = 256;         // entries a block (4 KB)
+  static constexpr std::size_t kBlocksPerSlab = 16;  // blocks allocated together (64 KB)
   struct Bucket {
     std::uint32_t head = kNone;  // the newest block, holding `fill` entries; every older one in the chain is full
     std::uint32_t fill = 0;

@@ -109,7 +109,7 @@ TEST(CandidateQueue, PurgedBlocksAreReusedByLaterPushes) {
   std::set<Key> reference;
   auto kept = [](const QueueEntry& e) { return e.vsum == 1 || e.v % 3 == 0; };
   for (std::uint32_t id = 0; id < 30000; ++id) {
-    const QueueEntry e = make_entry(cost_bits(1.0 + id % 3), id, id, 0);  // three buckets, ~10 blocks each
+    const QueueEntry e = make_entry(cost_bits(1.0 + id % 3), id, id, 0);  // three buckets of many blocks
     queue.push(e);
     if (kept(e)) reference.insert(key_of(e));
   }
