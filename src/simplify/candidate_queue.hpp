@@ -51,8 +51,9 @@ class CandidateQueue {
   CandidateQueue() : buckets_(std::size_t{1} << (32 - kBucketShift)) {}
 
   std::size_t size() const { return stored_; }
-  // Entries the buckets' blocks can hold, in use or free (what the buckets' memory is).
+  // Entries the buckets' blocks can hold, in use or free (what the buckets' memory is), and in free blocks.
   std::size_t storage_entries() const { return slabs_.size() * kBlocksPerSlab * kBlock; }
+  std::size_t spare_entries() const { return free_.size() * kBlock; }
   // The cheapest entry; only after refill() returned true.
   const QueueEntry& top() const { return from_run() ? run_[next_] : heap_.front(); }
 

@@ -47,9 +47,12 @@ namespace {
 constexpr std::size_t kBatchDivisor = 128;
 constexpr std::size_t kMaxBatch = 1024;
 
-// Queue entries superseded by newer ones stay queued until popped; when the queue holds this many times the
-// live edge count, drop them all at once (bounds memory: at 1.5 the queue's peak stays near its first fill).
-constexpr double kPurgeFactor = 1.5;
+// Queue entries superseded by newer ones stay queued until popped; when the queue holds kPurgeFactor times the
+// live edge count, drop them all at once (bounds the work of skipping them). Over kPurgeFactorAtLimit times,
+// the same once the queue has no free block left, so that its memory stays near its first fill's: a purge
+// costs a pass over the queue, so only where it saves memory.
+constexpr double kPurgeFactor = 3.0;
+constexpr double kPurgeFactorAtLimit = 1.5;
 
 // select(): candidates whose endpoints' stars together exceed this many faces are not gathered ahead in
 // parallel; their conflict test looks at the endpoints first (a high-valence vertex is in every neighbouring
@@ -733,7 +736,9 @@ class GreedyEngine {
 
   // Superseded entries: drop them in one sweep when they dominate the queue.
   void purge() {
-    if (queue_.size() > kPurgeFactor * (cm_.alive_faces() * 3 / 2) + 4096) {
+    const double live = static_cast<double>(cm_.alive_faces() * 3 / 2) + 4096.0;
+    const auto queued = static_cast<double>(queue_.size());
+    if (queued > kPurgeFactor * live || (queued > kPurgeFactorAtLimit * live && queue_.spare_entries() == 0)) {
       queue_.purge(parallel_, [this](const QueueEntry& e) { return current(e); });
     }
   }
