@@ -104,7 +104,7 @@ class CandidateQueue {
       parallel.for_ranges(chain_.size(), 4, [&](std::size_t b, std::size_t e) {
         for (std::size_t i = b; i < e; ++i) {
           const QueueEntry* p = block(chain_[i]);
-          const std::size_t n = i + 1 == chain_.size() ? bucket.fill : kBlock;
+          const std::size_t n = entries_in(i, chain_.size(), bucket.fill);
           for (std::size_t j = 0; j < n; ++j) keep_flags_[i * kBlock + j] = keep(p[j]) ? 1 : 0;
         }
       });
@@ -112,7 +112,7 @@ class CandidateQueue {
       next_ = 0;
       for (std::size_t i = 0; i < chain_.size(); ++i) {
         const QueueEntry* p = block(chain_[i]);
-        const std::size_t n = i + 1 == chain_.size() ? bucket.fill : kBlock;
+        const std::size_t n = entries_in(i, chain_.size(), bucket.fill);
         for (std::size_t j = 0; j < n; ++j) {
           if (keep_flags_[i * kBlock + j]) run_.push_back(p[j]);
         }
@@ -189,6 +189,10 @@ class CandidateQueue {
     next_block_.resize(next_block_.size() + kBlocksPerSlab, kNone);
     for (std::uint32_t i = kBlocksPerSlab; i-- > 0;) free_.push_back(first + i);
   }
+  // Entries in block i of a chain of `blocks`, oldest first: full but the head, which holds `fill`.
+  static std::size_t entries_in(std::size_t i, std::size_t blocks, std::uint32_t fill) {
+    return i + 1 == blocks ? fill : kBlock;
+  }
   // The bucket's blocks, oldest first (the head, partly filled, last).
   void chain(const Bucket& b, std::vector<std::uint32_t>& out) const {
     out.clear();
@@ -203,7 +207,7 @@ class CandidateQueue {
     std::size_t w = 0;
     for (std::size_t i = 0; i < ids.size(); ++i) {
       const QueueEntry* p = block(ids[i]);
-      const std::size_t n = i + 1 == ids.size() ? b.fill : kBlock;
+      const std::size_t n = entries_in(i, ids.size(), b.fill);
       for (std::size_t j = 0; j < n; ++j) {
         if (!keep(p[j])) continue;
         block(ids[w / kBlock])[w % kBlock] = p[j];

@@ -12,7 +12,6 @@
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <bit>
 #include <cassert>
 #include <cmath>
@@ -144,15 +143,8 @@ CollapseMesh::CollapseMesh(const Mesh& m, const SimplifyOptions& options, Parall
   for (std::size_t c = 0; c <= chunks; ++c) total += std::exchange(chunk_first[c], total);
   // One wedge per vertex, numbered as the vertices: the corners' wedges are their vertices (tri_wedge_ stays
   // empty). All faces valid: each working face is its input face (tri_source_ stays empty).
-  const bool own_wedges = nw == nv && [&] {
-    std::atomic<bool> same{true};
-    parallel.for_ranges(nw, 65536, [&](std::size_t b, std::size_t e) {
-      for (std::size_t w = b; w < e && same.load(std::memory_order_relaxed); ++w) {
-        if (m.wedge_vertex[w] != w) same.store(false, std::memory_order_relaxed);
-      }
-    });
-    return same.load();
-  }();
+  bool own_wedges = nw == nv;
+  for (std::size_t w = 0; own_wedges && w < nw; ++w) own_wedges = m.wedge_vertex[w] == w;
   tri_.resize(3 * std::size_t{total});
   if (!own_wedges) tri_wedge_.resize(3 * std::size_t{total});
   if (total != nf) tri_source_.resize(total);
@@ -279,18 +271,11 @@ void CollapseMesh::setup(Parallel& parallel) {
   const bool lock_border = options_.border_mode == BorderMode::lock;
   lock_reason_.assign(nv, 0);
 
-  // Each face's plane quadric (unit normal, offset, area), computed at each of its corners as the vertex sums
-  // its faces: no per-face array (40 bytes a face at the set-up's peak), and the same arithmetic, so the same
-  // bits, at every corner.
+  // Each face's plane quadric is computed at each of its corners as the vertex sums its faces: no per-face
+  // array (40 bytes a face at the set-up's peak), and the same arithmetic, so the same bits, at every corner.
   auto face_quadric = [&](std::uint32_t f) {
     const std::uint32_t* t = &tri_[3 * std::size_t{f}];
-    const Vec3d n = cross(vx_[t[1]].pos - vx_[t[0]].pos, vx_[t[2]].pos - vx_[t[0]].pos);
-    const double len = length(n);
-    if (!(len > 0.0 && std::isfinite(len))) return Quadric{};  // degenerate or non-finite: no surface
-    const Vec3d unit = n * (1.0 / len);
-    Quadric fq = Quadric::from_plane(unit, -dot(unit, vx_[t[0]].pos), 0.5 * len);
-    fq.weight = 0.5 * len;
-    return fq;
+    return Quadric::from_triangle(vx_[t[0]].pos, vx_[t[1]].pos, vx_[t[2]].pos);
   };
 
   // Seam constraint planes per vertex as well, where seams may relax and any vertex has several wedges.

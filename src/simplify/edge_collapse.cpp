@@ -684,11 +684,8 @@ class GreedyEngine {
     const std::uint32_t base = ring_first_[i];
     ring_size_[i] = static_cast<std::uint32_t>(s.ring.size());
     // Whether release() has anything to look at here (read-only in the parallel phase; release() runs after).
-    bool parked = parked_.any() && parked_.at(sv);
-    if (parked_.any()) {
-      for (std::uint32_t w : s.ring) parked = parked || parked_.at(w);
-    }
-    parked_near_[i] = parked ? 1 : 0;
+    parked_near_[i] = parked_.any() && (parked_.at(sv) || std::any_of(s.ring.begin(), s.ring.end(),
+                                                                       [&](std::uint32_t w) { return parked_.at(w); }));
     for (std::size_t r = 0; r < s.ring.size(); ++r) {
       const std::uint32_t w = s.ring[r];
       ring_buf_[base + r] = w;
