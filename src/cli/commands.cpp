@@ -401,9 +401,10 @@ void register_simplify(CLI::App& app) {
                   "PCT: with --conservative, stop before the LOD's volume grows (bounding) or shrinks (occluder) by "
                   "more than this percentage of the input's");
   cmd->add_option("--symmetry-weight", a->opt.symmetry_weight,
-                  "favour mirror pairs: an edge and its mirror image collapse together, and a collapse that breaks "
-                  "the symmetry costs 1 + this times its error (0 = off; edge_collapse engine and the polychord "
-                  "engine's triangle phase; multiple_choice, cluster and tiled runs ignore it; docs/symmetry.md)")
+                  "favour mirror pairs: an edge (polychord engine: a run of rungs) and its mirror image collapse "
+                  "together, and a collapse that breaks the symmetry costs 1 + this times its error (0 = off; "
+                  "edge_collapse and polychord engines; multiple_choice, cluster and tiled runs ignore it; "
+                  "docs/symmetry.md)")
       ->default_val(a->opt.symmetry_weight);
   cmd->add_option("--symmetry-plane", a->symmetry_plane,
                   "with --symmetry-weight: the mirror plane to look for: auto, x, y, z (normal along that axis), none")

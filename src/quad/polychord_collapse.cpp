@@ -14,6 +14,8 @@
 #include <queue>
 #include <stdexcept>
 #include <string>
+#include <tuple>
+#include <utility>
 
 #include "lodforge/metric/attribute_quadric.hpp"
 #include "lodforge/metric/quadric.hpp"
@@ -55,6 +57,7 @@ struct Candidate {
   long long removed = 0;  // triangles the collapse removes
   long long left = 0;     // triangles it leaves behind (open ends in quads) minus those it deletes
   double key = 0;         // cost per removed triangle, no better than the worst rung's: lower is better
+  double base_key = 0;    // the key before the triangle budget's factor
   bool over_budget = false;  // leaves more triangles than the budget has left (its key carries the penalty)
 };
 
@@ -87,6 +90,10 @@ struct Chord {
   // bad rung does not take the rest of the chord out of play. Halving max_run alone starved the UV-seamed
   // MakeHuman proxy741 of runs (597 seam refusals at 50%): its quad fraction at 25% went from 0.82 to 0.90.
   std::vector<std::uint8_t> blocked;
+  // Symmetry: the version whose entry pair_up() sent back into the queue at its symmetric key (kInvalidIndex:
+  // none), and whether that was because its mirror could not go with it (then it goes alone next time).
+  std::uint32_t rekeyed = kInvalidIndex;
+  bool alone = false;
 };
 
 // A diagonal collapse candidate: corners `diagonal` and `diagonal + 2` of quad `face`, scored while the face
@@ -100,6 +107,21 @@ struct DiagonalEntry {
     return diagonal > o.diagonal;
   }
 };
+
+// A run's mirror image: rungs [first, last] of `chord` (the same chord where the run is its own image).
+struct MirrorRun {
+  std::uint32_t chord = kInvalidIndex, first = 0, last = 0;
+  bool wraps = false;  // past the start of a closed chord: its lowest and highest index are first and last
+  bool covers = false;  // a run of the run's own chord that holds the run and its image (then it is the move)
+  std::vector<std::uint32_t> index;  // the image of the run's k-th rung is rung index[k] of `chord` (unless covers)
+  std::vector<std::array<std::uint32_t, 2>> rungs;  // those rungs
+  long long removed = 0;
+  double key = 0;
+};
+
+// A run goes back into the queue when its symmetric key (the mean of its and its mirror's, or its own times
+// 1 + symmetry_weight) exceeds its queued key by more than this factor; within it, it is taken as it is.
+constexpr double kRekeySlack = 1.01;
 
 struct IslandPlan {
   std::vector<std::vector<std::uint32_t>> islands;
@@ -132,6 +154,7 @@ class Engine {
                            : std::llround(options.max_triangle_fraction * static_cast<double>(target_) / 2.0);
     setup_quadrics();
     setup_attributes();
+    if (options.symmetry_weight > 0.0) setup_symmetry();
   }
 
   PolychordResult run();  // collapse(), then the surface fit and the output mesh
@@ -162,6 +185,37 @@ class Engine {
     return std::max(0LL, hard - static_cast<long long>(qm_.triangle_faces()));
   }
   IslandPlan plan(const Chord& chord, const Candidate& c) const;
+  // Islands of a set of rungs (of one run or of a run and its mirror image).
+  IslandPlan plan_rungs(const std::vector<std::array<std::uint32_t, 2>>& rungs) const;
+  // (removed, triangles left) of rungs [i, j] of p: see best_candidate().
+  std::pair<long long, long long> run_counts(const Polychord& p, std::size_t i, std::size_t j) const;
+  // Triangles one run may remove: what is left to the target plus the slack, halved where runs go in mirror
+  // pairs (so that a pair does not overshoot).
+  long long run_cap() const {
+    const long long cap = static_cast<long long>(qm_.triangle_count()) - static_cast<long long>(target_) + slack_;
+    return mirror_.empty() ? cap : (cap + 1) / 2;
+  }
+
+  // ---- symmetry (options_.symmetry_weight > 0) ----
+  enum class Pairing { single, pair, requeued };
+  void setup_symmetry();
+  // The mirror image of run c of chord `id`, when it is a run too (nullopt otherwise, `outside` set where some
+  // rung end has no mirror at all). May re-trace the stale chord holding it (chords_ grows).
+  std::optional<MirrorRun> mirror_run(std::uint32_t id, const Candidate& c, bool& outside);
+  // How chord `id`'s best run goes: with its mirror image (`mirror`), alone, or back into the queue once at the
+  // key of the way it will go.
+  Pairing pair_up(std::uint32_t id, MirrorRun& mirror);
+  void requeue_alone(std::uint32_t id);
+  // Islands that are each other's mirror image get mirrored places: the one holding the popped run's
+  // vertices (`own`, sorted) keeps its optimum; an island that is its own image goes onto the plane.
+  void mirror_places(IslandPlan& plan, const std::vector<std::uint32_t>& own) const;
+  // After a weld: survivors of islands that mirror each other mirror each other; every other island vertex
+  // and its partner lose their mirror.
+  void update_mirror(const std::vector<std::vector<std::uint32_t>>& islands, const std::vector<std::uint32_t>& survivors);
+  // The surface fit moves each vertex by its own least-squares step, which mirrored vertices take alike only
+  // up to what differs around them: mirrored moved vertices meet halfway (one at the other's mirror image),
+  // moved ones on the plane go onto it.
+  void symmetrize_fit();
   void place(const std::vector<std::uint32_t>& island, IslandPlan& out) const;
   void push_diagonals(std::uint32_t face);
   // Pops the best diagonal collapse and makes it if still valid.
@@ -175,6 +229,11 @@ class Engine {
   }
   double diagonal_top();  // key of the best live diagonal entry (stale ones dropped), +inf when none
   bool block_failing_rungs(Chord& chord, const Candidate& c);
+  void refuse(std::uint32_t id, const Candidate& c);
+  // A run and its mirror image refused together, where at least one half fails alone too: each failing
+  // half's failing rungs are blocked (or its whole chord, or its run length halved) and the same is done to
+  // the other half's images of them, so that the two sides keep leaving the same rungs out.
+  void refuse_pair(std::uint32_t id, const Candidate& c, const MirrorRun& m, bool run_fails, bool mirror_fails);
   void trace_from(std::uint32_t face, int direction);
   void push(std::uint32_t id);
   void mark_stale(std::uint32_t id);
@@ -222,6 +281,9 @@ class Engine {
   };
   mutable Scratch scratch_;  // best_candidate()'s arrays
   TraceScratch trace_scratch_;
+  std::vector<std::uint32_t> mirror_;     // per vertex (empty: no symmetry term)
+  std::optional<symmetry::Plane> plane_;  // model coordinates, set with mirror_
+  std::size_t paired_ = 0;
 };
 
 void Engine::setup_quadrics() {
@@ -432,7 +494,7 @@ double Engine::attribute_cost(std::uint32_t a, std::uint32_t b, std::uint32_t di
 std::optional<Candidate> Engine::best_candidate(const Chord& chord, long long cap, double& held_key) const {
   held_key = std::numeric_limits<double>::infinity();
   const Polychord& p = chord.trace;
-  const std::size_t rungs = p.rungs.size(), quads = p.faces.size();
+  const std::size_t rungs = p.rungs.size();
   if (rungs == 0) return std::nullopt;
   // Scratch reused across calls (the engine is sequential): allocating these per chord was a tenth of the
   // engine's time on the 100k-quad torus.
@@ -452,32 +514,13 @@ std::optional<Candidate> Engine::best_candidate(const Chord& chord, long long ca
   }
   std::vector<long long>& conflict = scratch_.conflict;
   rung_conflicts(p, conflict, scratch_.last_rung);
-  // What an open end of a run does: in a quad, turns it into a triangle (removes 1, leaves 1); at a triangle
-  // the chord ends in, deletes it (removes 1, closes 1); at a boundary, nothing.
-  auto end_effect = [&](bool inner, int side) -> std::pair<int, int> {  // (removed, triangles left)
-    if (inner) return {1, 1};
-    if (p.ends[side] == ChordEnd::triangle) return {1, -1};
-    return {0, 0};
-  };
   const long long max_left = std::max(0LL, triangles_left_allowed());
   auto evaluate = [&](std::size_t i, std::size_t j, double worst) {
     Candidate c{static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(j), 0, 0, 0};
-    long long& left = c.left;
-    if (p.closed && j - i + 1 == rungs) {
-      c.removed = 2 * static_cast<long long>(quads);
-      left = 0;
-    } else if (p.closed) {
-      c.removed = 2 * static_cast<long long>(j - i) + 2;
-      left = 2;
-    } else {
-      const auto [r0, t0] = end_effect(i > 0, 0);
-      const auto [r1, t1] = end_effect(j < quads, 1);
-      c.removed = 2 * static_cast<long long>(j - i) + r0 + r1;
-      left = t0 + t1;
-    }
-    c.cost = std::max(0.0, prefix[j + 1] - prefix[i] + penalty_ * static_cast<double>(left));
+    std::tie(c.removed, c.left) = run_counts(p, i, j);
+    c.cost = std::max(0.0, prefix[j + 1] - prefix[i] + penalty_ * static_cast<double>(c.left));
     // A long cheap run must not carry one expensive rung along: rank it no better than its worst rung.
-    c.key = rank(c.cost, c.removed, worst);
+    c.key = c.base_key = rank(c.cost, c.removed, worst);
     // Once the budget is spent, runs that leave triangles rank worse and runs that delete some rank better
     // (freeing budget): on the bench this kept the quad fraction near 0.9 rather than 0.87 at equal error.
     if (c.left > max_left) {
@@ -554,13 +597,33 @@ std::optional<Candidate> Engine::best_candidate(const Chord& chord, long long ca
   return best;
 }
 
+std::pair<long long, long long> Engine::run_counts(const Polychord& p, std::size_t i, std::size_t j) const {
+  const std::size_t rungs = p.rungs.size(), quads = p.faces.size();
+  if (p.closed && j - i + 1 == rungs) return {2 * static_cast<long long>(quads), 0};
+  if (p.closed) return {2 * static_cast<long long>(j - i) + 2, 2};
+  // What an open end of a run does: in a quad, turns it into a triangle (removes 1, leaves 1); at a triangle
+  // the chord ends in, deletes it (removes 1, closes 1); at a boundary, nothing.
+  auto end_effect = [&](bool inner, int side) -> std::pair<int, int> {
+    if (inner) return {1, 1};
+    if (p.ends[side] == ChordEnd::triangle) return {1, -1};
+    return {0, 0};
+  };
+  const auto [r0, t0] = end_effect(i > 0, 0);
+  const auto [r1, t1] = end_effect(j < quads, 1);
+  return {2 * static_cast<long long>(j - i) + r0 + r1, t0 + t1};
+}
+
 // Islands of a run: its rungs, joined where they share a vertex (union-find), each placed by its summed
 // quadric.
 IslandPlan Engine::plan(const Chord& chord, const Candidate& c) const {
-  IslandPlan out;
   const Polychord& p = chord.trace;
+  return plan_rungs({p.rungs.begin() + c.first, p.rungs.begin() + c.last + 1});
+}
+
+IslandPlan Engine::plan_rungs(const std::vector<std::array<std::uint32_t, 2>>& rungs) const {
+  IslandPlan out;
   std::vector<std::uint32_t> verts;
-  for (std::uint32_t k = c.first; k <= c.last; ++k) verts.insert(verts.end(), p.rungs[k].begin(), p.rungs[k].end());
+  for (const auto& r : rungs) verts.insert(verts.end(), r.begin(), r.end());
   std::sort(verts.begin(), verts.end());
   verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
   std::vector<std::uint32_t> parent(verts.size());
@@ -572,8 +635,8 @@ IslandPlan Engine::plan(const Chord& chord, const Candidate& c) const {
     while (parent[x] != x) x = parent[x] = parent[parent[x]];
     return x;
   };
-  for (std::uint32_t k = c.first; k <= c.last; ++k) {
-    const std::uint32_t a = root(index(p.rungs[k][0])), b = root(index(p.rungs[k][1]));
+  for (const auto& r : rungs) {
+    const std::uint32_t a = root(index(r[0])), b = root(index(r[1]));
     if (a != b) parent[std::max(a, b)] = std::min(a, b);
   }
   std::vector<std::uint32_t> island_of(verts.size(), kInvalidIndex);
@@ -777,6 +840,7 @@ void Engine::try_diagonal() {
   }
   quadric_[w.survivors[0]] = plan.quadrics[0];
   carry_attributes(w);
+  if (!mirror_.empty()) update_mirror(plan.islands, w.survivors);
   error_bound_ = std::max(error_bound_, plan.max_error);
   ++diagonal_collapses_;
   invalidate_around(w);
@@ -803,11 +867,62 @@ bool Engine::block_failing_rungs(Chord& chord, const Candidate& c) {
   return any;
 }
 
+// After the weld refused run c of chord `id`: the whole chord is not tried again, or the rungs that fail on
+// their own are blocked (or, where none does, runs are halved); then the chord is queued afresh.
+void Engine::refuse(std::uint32_t id, const Candidate& c) {
+  Chord& chord = chords_[id];
+  ++chord.version;
+  const bool whole = c.first == 0 && c.last + 1 == chord.trace.rungs.size();
+  if (whole && chord.whole_allowed) chord.whole_allowed = false;
+  else if (!block_failing_rungs(chord, c)) chord.max_run = (c.last - c.first + 1) / 2;
+  push(id);
+}
+
+void Engine::refuse_pair(std::uint32_t id, const Candidate& c, const MirrorRun& m, bool run_fails, bool mirror_fails) {
+  Chord& a = chords_[id];
+  Chord& b = chords_[m.chord];
+  const std::size_t n = c.last - c.first + 1;
+  const bool whole_a = n == a.trace.rungs.size(), whole_b = m.index.size() == b.trace.rungs.size();
+  a.blocked.resize(a.trace.rungs.size(), 0);
+  b.blocked.resize(b.trace.rungs.size(), 0);
+  bool halve = false;
+  if ((run_fails && whole_a && a.whole_allowed) || (mirror_fails && whole_b && b.whole_allowed)) {
+    a.whole_allowed = b.whole_allowed = false;
+  } else {
+    bool any = false;
+    if (run_fails) any |= block_failing_rungs(a, c);
+    if (mirror_fails) {
+      // block_failing_rungs() takes a range; the image's rungs are tested one by one instead (it may wrap).
+      WeldOptions check = weld_options_;
+      check.dry_run = true;
+      for (std::uint32_t k : m.index) {
+        const IslandPlan single = plan_rungs({b.trace.rungs[k]});
+        if (!skin_allows(single.islands) || !qm_.weld(single.islands, single.positions, check).ok()) {
+          b.blocked[k] = 1;
+          any = true;
+        }
+      }
+    }
+    halve = !any;
+  }
+  for (std::size_t t = 0; t < n; ++t) {
+    std::uint8_t& x = a.blocked[c.first + t];
+    std::uint8_t& y = b.blocked[m.index[t]];
+    x = y = static_cast<std::uint8_t>(x | y);
+  }
+  if (halve) a.max_run = b.max_run = std::max<std::size_t>(1, n / 2);
+  ++a.version;
+  push(id);
+  if (m.chord != id) {
+    ++b.version;
+    push(m.chord);
+  }
+}
+
 void Engine::push(std::uint32_t id) {
   Chord& chord = chords_[id];
-  const long long remaining = static_cast<long long>(qm_.triangle_count()) - static_cast<long long>(target_);
   double held = 0;
-  if (const auto c = best_candidate(chord, remaining + slack_, held)) {
+  if (const auto c = best_candidate(chord, run_cap(), held)) {
     chord.best = *c;
     chord.queued = true;
     queue_.push({c->key, c->removed, id, chord.version});
@@ -884,6 +999,285 @@ void Engine::invalidate_around(const WeldResult& w) {
   }
 }
 
+// ---- symmetry ---------------------------------------------------------------------------------------------
+
+void Engine::setup_symmetry() {
+  const std::size_t nv = qm_.vertex_count();
+  if (options_.vertex_mirror != nullptr) {
+    if (options_.vertex_mirror->size() != nv) return;
+    mirror_ = *options_.vertex_mirror;
+    for (std::uint32_t& m : mirror_) {
+      if (m >= nv) m = kInvalidIndex;
+    }
+    plane_ = symmetry::plane_of_pairs(mesh_, mirror_);
+  } else {
+    symmetry::SymmetryMap map = symmetry::detect_symmetry(mesh_, {.plane = options_.symmetry_plane});
+    if (map.found() && map.vertex_mirror.size() == nv) {
+      mirror_ = std::move(map.vertex_mirror);
+      plane_ = map.plane;
+    }
+  }
+  if (!plane_) mirror_.clear();
+}
+
+std::optional<MirrorRun> Engine::mirror_run(std::uint32_t id, const Candidate& c, bool& outside) {
+  outside = false;
+  using Rung = std::array<std::uint32_t, 2>;
+  auto sorted = [](Rung r) {
+    if (r[0] > r[1]) std::swap(r[0], r[1]);
+    return r;
+  };
+  // The run's rungs and their images (copies: re-tracing below grows chords_).
+  const bool run_closed = chords_[id].trace.closed;
+  const bool whole = c.first == 0 && c.last + 1 == chords_[id].trace.rungs.size();
+  std::vector<Rung> own, image;
+  std::size_t ends = 0;  // rung ends with a mirror
+  for (std::uint32_t k = c.first; k <= c.last; ++k) {
+    const Rung r = chords_[id].trace.rungs[k];
+    ends += (mirror_[r[0]] != kInvalidIndex) + (mirror_[r[1]] != kInvalidIndex);
+    own.push_back(sorted(r));
+    image.push_back(sorted({mirror_[r[0]], mirror_[r[1]]}));
+  }
+  // Wholly outside the symmetric part: nothing to keep. Partly: the run has no image, and going alone
+  // would take the symmetry of its mirrored vertices' partners with it.
+  if (ends == 0) {
+    outside = true;
+    return std::nullopt;
+  }
+  if (ends < 2 * own.size()) return std::nullopt;
+  {
+    std::vector<Rung> a = own, b = image;
+    std::sort(a.begin(), a.end());
+    std::sort(b.begin(), b.end());
+    if (a == b) return MirrorRun{.chord = id, .first = c.first, .last = c.last, .removed = c.removed, .key = c.key};
+  }
+  // The chord through the image of the first rung: a quad with that side, in one of its two directions.
+  const auto [ma, mb] = image[0];
+  std::uint32_t other = kInvalidIndex;
+  std::size_t at = 0;
+  for (std::uint32_t f : std::vector<std::uint32_t>(qm_.vertex_faces(ma))) {
+    if (qm_.face_size(f) != 4 || qm_.corner_of(f, mb) == kInvalidIndex) continue;
+    for (int d = 0; d < 2 && other == kInvalidIndex; ++d) {
+      std::uint32_t cid = face_chord_[f][d];
+      if (cid == kInvalidIndex) continue;
+      if (chords_[cid].state == Chord::State::stale) {
+        retrace(cid);
+        cid = face_chord_[f][d];
+        if (cid == kInvalidIndex) continue;
+      }
+      if (chords_[cid].state != Chord::State::alive) continue;
+      const std::vector<Rung>& rs = chords_[cid].trace.rungs;
+      for (std::size_t k = 0; k < rs.size(); ++k) {
+        if (sorted(rs[k]) == image[0]) {
+          other = cid;
+          at = k;
+          break;
+        }
+      }
+    }
+    if (other != kInvalidIndex) break;
+  }
+  if (other == kInvalidIndex) return std::nullopt;
+  const Chord& o = chords_[other];
+  const std::vector<Rung>& rs = o.trace.rungs;
+  const std::size_t n = image.size(), size = rs.size();
+  // The image's rung indices in `other`, in the run's order (on a closed chord they may wrap past its start).
+  std::vector<std::uint32_t> index;
+  if (whole && run_closed && o.trace.closed && size == n) {
+    // A whole closed chord's image is a whole closed chord, traced from wherever.
+    std::vector<Rung> a = image, b;
+    for (const Rung& r : rs) b.push_back(sorted(r));
+    std::sort(a.begin(), a.end());
+    std::sort(b.begin(), b.end());
+    if (a == b) {
+      for (std::uint32_t k = 0; k < n; ++k) index.push_back(k);
+    }
+  } else if (n <= size) {
+    for (int step : {1, -1}) {
+      index.clear();
+      for (std::size_t t = 0; t < n; ++t) {
+        long long k = static_cast<long long>(at) + step * static_cast<long long>(t);
+        if (o.trace.closed) k = (k % static_cast<long long>(size) + static_cast<long long>(size)) % static_cast<long long>(size);
+        if (k < 0 || k >= static_cast<long long>(size) || sorted(rs[static_cast<std::size_t>(k)]) != image[t]) break;
+        index.push_back(static_cast<std::uint32_t>(k));
+      }
+      if (index.size() == n) break;
+    }
+    if (index.size() != n) index.clear();
+  }
+  if (index.empty()) return std::nullopt;
+  const auto [lo, hi] = std::minmax_element(index.begin(), index.end());
+  MirrorRun m{.chord = other, .first = *lo, .last = *hi};
+  m.wraps = m.last - m.first + 1 != n;
+  // Within one chord, a run overlapping its image (it crosses the plane off centre) grows to the run that
+  // covers both, its own image.
+  if (other == id && std::any_of(index.begin(), index.end(), [&](std::uint32_t k) { return k >= c.first && k <= c.last; })) {
+    if (m.wraps) return std::nullopt;
+    m.covers = true;
+    m.first = std::min(m.first, c.first);
+    m.last = std::max(m.last, c.last);
+    index.clear();
+    for (std::uint32_t k = m.first; k <= m.last; ++k) index.push_back(k);
+  }
+  // The image must be a run the weld may make: usable, unblocked rungs without a shared vertex, the whole
+  // chord only where allowed.
+  if (index.size() == size && (!o.whole_allowed || o.trace.self_touching)) return std::nullopt;
+  std::vector<std::uint32_t> verts;
+  double cost = 0, worst = 0;
+  for (std::uint32_t k : index) {
+    if (!o.blocked.empty() && o.blocked[k] != 0) return std::nullopt;
+    const double rc = rung_cost(rs[k]);
+    if (!std::isfinite(rc)) return std::nullopt;
+    cost += rc;
+    worst = std::max(worst, rc);
+    verts.insert(verts.end(), rs[k].begin(), rs[k].end());
+    m.rungs.push_back(rs[k]);
+  }
+  m.index = index;
+  std::sort(verts.begin(), verts.end());
+  if (std::adjacent_find(verts.begin(), verts.end()) != verts.end()) return std::nullopt;
+  long long left = 0;
+  // A wrapped run of a closed chord counts as any partial run of it.
+  std::tie(m.removed, left) = m.wraps ? run_counts(o.trace, 0, n - 1) : run_counts(o.trace, m.first, m.last);
+  if (m.covers && m.removed > run_cap() * 2) return std::nullopt;  // as large as a pair may be
+  // The triangle budget's factor is the run's own (set when it was queued): a run and its image in the same
+  // state rank alike.
+  m.key = rank(std::max(0.0, cost + penalty_ * static_cast<double>(left)), m.removed, worst);
+  if (c.base_key > 0.0 && std::isfinite(c.base_key)) m.key *= c.key / c.base_key;
+  return m;
+}
+
+Engine::Pairing Engine::pair_up(std::uint32_t id, MirrorRun& mirror) {
+  const Candidate c = chords_[id].best;
+  const bool tagged = chords_[id].rekeyed == chords_[id].version;
+  const bool alone = tagged && chords_[id].alone;
+  bool outside = false;
+  const std::optional<MirrorRun> m = mirror_run(id, c, outside);
+  if (outside) return Pairing::single;  // outside the symmetric region
+  if (m && m->chord == id && m->first == c.first && m->last == c.last) return Pairing::single;  // its own image
+  double pair_key = std::numeric_limits<double>::infinity();
+  if (m && !alone) pair_key = m->covers ? m->key : 0.5 * (c.key + m->key);
+  const double alone_key = c.key * (1.0 + options_.symmetry_weight);
+  const double best = std::min(pair_key, alone_key);
+  Chord& chord = chords_[id];
+  if (!tagged && best > c.key * kRekeySlack) {
+    chord.rekeyed = chord.version;
+    chord.alone = false;
+    chord.queued = true;
+    queue_.push({best, c.removed, id, chord.version});
+    return Pairing::requeued;
+  }
+  if (pair_key <= alone_key) {
+    mirror = *m;
+    return Pairing::pair;
+  }
+  return Pairing::single;
+}
+
+void Engine::requeue_alone(std::uint32_t id) {
+  Chord& chord = chords_[id];
+  chord.rekeyed = chord.version;
+  chord.alone = true;
+  chord.queued = true;
+  queue_.push({chord.best.key * (1.0 + options_.symmetry_weight), chord.best.removed, id, chord.version});
+}
+
+void Engine::mirror_places(IslandPlan& plan, const std::vector<std::uint32_t>& own) const {
+  const std::size_t n = plan.islands.size();
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> member;  // (vertex, island), sorted
+  for (std::uint32_t i = 0; i < n; ++i) {
+    for (std::uint32_t v : plan.islands[i]) member.emplace_back(v, i);
+  }
+  std::sort(member.begin(), member.end());
+  auto island_of = [&](std::uint32_t v) {
+    const auto it = std::lower_bound(member.begin(), member.end(), std::pair{v, 0u});
+    return it != member.end() && it->first == v ? it->second : kInvalidIndex;
+  };
+  auto holds_own = [&](std::uint32_t i) {
+    return std::any_of(plan.islands[i].begin(), plan.islands[i].end(),
+                       [&](std::uint32_t v) { return std::binary_search(own.begin(), own.end(), v); });
+  };
+  auto has_locked = [&](std::uint32_t i) {
+    return std::any_of(plan.islands[i].begin(), plan.islands[i].end(), [&](std::uint32_t v) { return qm_.locked(v); });
+  };
+  bool changed = false;
+  for (std::uint32_t i = 0; i < n; ++i) {
+    const std::vector<std::uint32_t>& island = plan.islands[i];
+    const std::uint32_t j = mirror_[island[0]] == kInvalidIndex ? kInvalidIndex : island_of(mirror_[island[0]]);
+    if (j == kInvalidIndex || plan.islands[j].size() != island.size()) continue;
+    const bool image = std::all_of(island.begin(), island.end(), [&](std::uint32_t v) {
+      return mirror_[v] != kInvalidIndex && island_of(mirror_[v]) == j;
+    });
+    if (!image) continue;
+    if (j == i) {
+      if (has_locked(i)) continue;
+      const Vec3d& x = plan.positions[i];
+      plan.positions[i] = x - plane_->normal * plane_->signed_distance(x);
+      changed = true;
+      continue;
+    }
+    // The pair's island that keeps its optimum: the popped run's, else the lower index.
+    const bool keep = holds_own(i) != holds_own(j) ? holds_own(i) : i < j;
+    if (!keep || has_locked(j)) continue;
+    plan.positions[j] = plane_->reflect(plan.positions[i]);
+    changed = true;
+  }
+  if (!changed) return;
+  plan.max_error = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Quadric& q = plan.quadrics[i];
+    const double e = q.evaluate(plan.positions[i]);
+    plan.max_error = std::max(plan.max_error, q.weight > 0.0 ? std::sqrt(std::max(0.0, e) / q.weight) : 0.0);
+  }
+}
+
+void Engine::update_mirror(const std::vector<std::vector<std::uint32_t>>& islands,
+                           const std::vector<std::uint32_t>& survivors) {
+  const std::size_t n = islands.size();
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> member;
+  for (std::uint32_t i = 0; i < n; ++i) {
+    for (std::uint32_t v : islands[i]) member.emplace_back(v, i);
+  }
+  std::sort(member.begin(), member.end());
+  auto island_of = [&](std::uint32_t v) {
+    const auto it = std::lower_bound(member.begin(), member.end(), std::pair{v, 0u});
+    return it != member.end() && it->first == v ? it->second : kInvalidIndex;
+  };
+  std::vector<std::uint32_t> image(n, kInvalidIndex);
+  for (std::uint32_t i = 0; i < n; ++i) {
+    const std::uint32_t j = mirror_[islands[i][0]] == kInvalidIndex ? kInvalidIndex : island_of(mirror_[islands[i][0]]);
+    if (j == kInvalidIndex || islands[j].size() != islands[i].size()) continue;
+    if (std::all_of(islands[i].begin(), islands[i].end(),
+                    [&](std::uint32_t v) { return mirror_[v] != kInvalidIndex && island_of(mirror_[v]) == j; })) {
+      image[i] = j;
+    }
+  }
+  for (const auto& [v, i] : member) {
+    const std::uint32_t m = mirror_[v];
+    if (m != kInvalidIndex && island_of(m) == kInvalidIndex && mirror_[m] == v) mirror_[m] = kInvalidIndex;
+  }
+  for (const auto& [v, i] : member) mirror_[v] = kInvalidIndex;
+  for (std::uint32_t i = 0; i < n; ++i) {
+    if (image[i] != kInvalidIndex) mirror_[survivors[i]] = survivors[image[i]];
+  }
+}
+
+void Engine::symmetrize_fit() {
+  for (std::uint32_t v = 0; v < mirror_.size(); ++v) {
+    const std::uint32_t m = mirror_[v];
+    if (m == kInvalidIndex || m < v || !qm_.vertex_alive(v) || !qm_.vertex_alive(m)) continue;
+    if (!qm_.moved(v) || !qm_.moved(m) || qm_.locked(v) || qm_.locked(m)) continue;
+    if (m == v) {
+      const Vec3d& x = qm_.position(v);
+      qm_.set_position(v, x - plane_->normal * plane_->signed_distance(x));
+      continue;
+    }
+    const Vec3d x = (qm_.position(v) + plane_->reflect(qm_.position(m))) * 0.5;
+    qm_.set_position(v, x);
+    qm_.set_position(m, plane_->reflect(x));
+  }
+}
+
 PolychordResult Engine::run() {
   // The surface fit's BVH of the input is built on another core while the (sequential) collapses run.
   TriangleBvh input_bvh;
@@ -895,7 +1289,10 @@ PolychordResult Engine::run() {
     // Quadric placement bounds the distance to the absorbed faces' planes, not to the surface between them;
     // on the bench, fitting the moved vertices to the input took the mean distance of the MakeHuman casual
     // suit at 25% from 1.68x the triangle engine's to 1.42x.
-    if (options_.fit_surface && !result.stopped) refit_to_surface(qm_, mesh_, input_bvh, {});
+    if (options_.fit_surface && !result.stopped) {
+      refit_to_surface(qm_, mesh_, input_bvh, {});
+      if (!mirror_.empty()) symmetrize_fit();
+    }
     AttributeOverrides values;
     if (write_values_) {
       if (!normals_.empty()) values.normals = &normals_;
@@ -975,19 +1372,41 @@ PolychordResult Engine::collapse() {
       continue;
     }
     if (chord.state != Chord::State::alive) continue;
-    const long long remaining = static_cast<long long>(qm_.triangle_count()) - static_cast<long long>(target_);
     // The cap tightened, or the run's standing against the triangle budget changed, since it was queued.
     const bool over_now = chord.best.left > std::max(0LL, triangles_left_allowed());
-    if (chord.best.removed > remaining + slack_ ||
+    if (chord.best.removed > run_cap() ||
         (chord.best.left > 0 && (over_now != chord.best.over_budget || chord.best.left > hard_triangles_left()))) {
       ++chord.version;
       push(e.chord);
       continue;
     }
     const Candidate candidate = chord.best;
-    const IslandPlan islands = plan(chord, candidate);
+    MirrorRun mirror;
+    const Pairing pairing = mirror_.empty() ? Pairing::single : pair_up(e.chord, mirror);
+    if (pairing == Pairing::requeued) continue;
+    // pair_up() may have re-traced the mirror's chord, which grows chords_.
+    Chord& run_chord = chords_[e.chord];
+    const Polychord& trace = run_chord.trace;
+    std::vector<std::array<std::uint32_t, 2>> rungs(trace.rungs.begin() + candidate.first,
+                                                    trace.rungs.begin() + candidate.last + 1);
+    std::vector<std::uint32_t> own;
+    if (!mirror_.empty()) {
+      for (const auto& r : rungs) own.insert(own.end(), r.begin(), r.end());
+      std::sort(own.begin(), own.end());
+      own.erase(std::unique(own.begin(), own.end()), own.end());
+    }
+    if (pairing == Pairing::pair) {
+      if (mirror.covers) rungs.clear();
+      rungs.insert(rungs.end(), mirror.rungs.begin(), mirror.rungs.end());
+    }
+    IslandPlan islands = plan_rungs(rungs);
+    if (!mirror_.empty()) mirror_places(islands, own);
     if (!stop_.allows(islands.max_error)) {  // stays out until its neighbourhood changes
-      ++over_budget_;
+      if (pairing == Pairing::pair) {
+        requeue_alone(e.chord);
+      } else {
+        ++over_budget_;
+      }
       continue;
     }
     WeldResult w;
@@ -998,17 +1417,41 @@ PolychordResult Engine::collapse() {
     }
     if (!w.ok()) {
       ++rejected_;
-      ++chord.version;
-      const bool whole = candidate.first == 0 && candidate.last + 1 == chord.trace.rungs.size();
-      if (whole && chord.whole_allowed) chord.whole_allowed = false;
-      else if (!block_failing_rungs(chord, candidate)) chord.max_run = (candidate.last - candidate.first + 1) / 2;
-      push(e.chord);
+      if (pairing == Pairing::pair) {
+        // The pair failed together. Each half the weld refuses on its own is refused as a single run would
+        // be (its failing rungs blocked, so both sides leave the same rungs out); where neither is, they fail
+        // only together, and the run goes alone later.
+        WeldOptions check = weld_options_;
+        check.dry_run = true;
+        auto fails_alone = [&](const std::vector<std::array<std::uint32_t, 2>>& half) {
+          const IslandPlan solo = plan_rungs(half);
+          return !skin_allows(solo.islands) || !qm_.weld(solo.islands, solo.positions, check).ok();
+        };
+        const Polychord& trace_now = chords_[e.chord].trace;
+        const bool run_fails =
+            fails_alone({trace_now.rungs.begin() + candidate.first, trace_now.rungs.begin() + candidate.last + 1});
+        const bool mirror_fails = !mirror.covers && fails_alone(mirror.rungs);
+        if (mirror.covers && run_fails) {
+          refuse(e.chord, candidate);
+        } else if (run_fails || mirror_fails) {
+          refuse_pair(e.chord, candidate, mirror, run_fails, mirror_fails);
+        } else {
+          requeue_alone(e.chord);
+        }
+        continue;
+      }
+      refuse(e.chord, candidate);
       continue;
     }
     for (std::size_t k = 0; k < w.survivors.size(); ++k) quadric_[w.survivors[k]] = islands.quadrics[k];
     carry_attributes(w);
+    if (!mirror_.empty()) update_mirror(islands.islands, w.survivors);
     error_bound_ = std::max(error_bound_, islands.max_error);
     ++collapses_;
+    if (pairing == Pairing::pair) {
+      ++collapses_;
+      paired_ += 2;
+    }
     invalidate_around(w);
   }
 
@@ -1017,6 +1460,7 @@ PolychordResult Engine::collapse() {
   result.target_reached = stop_.reached(result.triangles_after);
   result.error_bound_abs = error_bound_;
   result.collapses = collapses_;
+  result.paired_collapses = paired_;
   result.rejected = rejected_;
   result.over_budget = over_budget_;
   result.diagonal_collapses = diagonal_collapses_;

@@ -518,7 +518,7 @@ class GreedyEngine {
       for (std::uint32_t& m : mirror_) {
         if (m >= cm_.vertex_count()) m = kInvalidIndex;
       }
-      if (const std::optional<symmetry::Plane> plane = fit_plane(triangles)) use_plane(*plane);
+      if (const std::optional<symmetry::Plane> plane = symmetry::plane_of_pairs(triangles, mirror_)) use_plane(*plane);
     } else {
       symmetry::SymmetryMap map = symmetry::detect_symmetry(triangles, {.plane = options_.symmetry_plane});
       if (map.found()) {
@@ -531,29 +531,6 @@ class GreedyEngine {
   // The plane in the working mesh's normalised coordinates (model = origin + scale × normalised).
   void use_plane(const symmetry::Plane& plane) {
     plane_ = symmetry::Plane{plane.normal, (dot(plane.normal, cm_.model_position(Vec3d{})) + plane.offset) / cm_.scale()};
-  }
-
-  // A given map's plane: normal along the mean difference of the mirror pairs, through their mean midpoint.
-  std::optional<symmetry::Plane> fit_plane(const Mesh& triangles) const {
-    Vec3d sum{}, first{}, mid{};
-    std::size_t pairs = 0;
-    for (std::uint32_t v = 0; v < mirror_.size(); ++v) {
-      const std::uint32_t m = mirror_[v];
-      if (m == kInvalidIndex || m <= v) continue;
-      const Vec3d a = to_double(triangles.positions[v]), b = to_double(triangles.positions[m]);
-      Vec3d d = a - b;
-      if (pairs == 0) first = d;
-      if (dot(d, first) < 0) d = d * -1.0;
-      sum = sum + d;
-      mid = mid + (a + b) * 0.5;
-      ++pairs;
-    }
-    const double length = std::sqrt(dot(sum, sum));
-    if (pairs == 0 || !(length > 0) || !std::isfinite(length)) return std::nullopt;
-    symmetry::Plane plane;
-    plane.normal = sum * (1.0 / length);
-    plane.offset = -dot(plane.normal, mid * (1.0 / static_cast<double>(pairs)));
-    return plane;
   }
 
   Vec3d onto_plane(const Vec3d& x) const { return x - plane_->normal * plane_->signed_distance(x); }

@@ -185,6 +185,7 @@ SimplifyResult quad_engine_result(quad::PolychordResult&& q, const SimplifyOptio
   r.triangles_after = q.triangles_after;
   r.qem_error_abs = q.error_bound_abs;
   r.collapses = q.collapses;
+  r.paired_collapses = q.paired_collapses;
   r.vetoes[Veto::weld] = q.rejected;
   r.vetoes[Veto::error_budget] = q.over_budget;
   r.stop_reason = StopReason::target_reached;
@@ -318,6 +319,9 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options, c
              .uv_weight = options.attribute_weights.uv,
              .color_weight = options.attribute_weights.color,
              .optimal_attributes = options.attribute_placement == AttributePlacement::optimal,
+             .symmetry_weight = options.symmetry_weight,
+             .symmetry_plane = options.symmetry_plane,
+             .vertex_mirror = options.vertex_mirror,
              .stop = options.stop};
   };
   quad::PolychordResult q = quad::simplify_polychord(mesh, quad_options(target));
@@ -347,6 +351,7 @@ SimplifyResult run_polychord(const Mesh& mesh, const SimplifyOptions& options, c
     r.mesh = quad::recover_quads(r.mesh, {.keep_triangles = true});
     if (!restart) {
       r.collapses += q.collapses;
+      r.paired_collapses += q.paired_collapses;
       r.vetoes[Veto::weld] += q.rejected;
       r.vetoes[Veto::error_budget] += q.over_budget;
       r.qem_error_abs = std::max(r.qem_error_abs, q.error_bound_abs);

@@ -393,4 +393,27 @@ SymmetryMap detect_symmetry(const Mesh& mesh, const SymmetryOptions& options) {
   return detect_symmetry(mesh, build_topology(mesh), options);
 }
 
+std::optional<Plane> plane_of_pairs(const Mesh& mesh, const std::vector<std::uint32_t>& mirror) {
+  Vec3d sum{}, first{}, mid{};
+  std::size_t pairs = 0;
+  const std::size_t n = std::min(mirror.size(), mesh.vertex_count());
+  for (std::uint32_t v = 0; v < n; ++v) {
+    const std::uint32_t m = mirror[v];
+    if (m >= n || m <= v) continue;
+    const Vec3d a = to_double(mesh.positions[v]), b = to_double(mesh.positions[m]);
+    Vec3d d = a - b;
+    if (pairs == 0) first = d;
+    if (dot(d, first) < 0) d = d * -1.0;  // each pair's difference on the same side of the plane
+    sum = sum + d;
+    mid = mid + (a + b) * 0.5;
+    ++pairs;
+  }
+  const double length = std::sqrt(dot(sum, sum));
+  if (pairs == 0 || !(length > 0) || !std::isfinite(length)) return std::nullopt;
+  Plane plane;
+  plane.normal = sum * (1.0 / length);
+  plane.offset = -dot(plane.normal, mid * (1.0 / static_cast<double>(pairs)));
+  return plane;
+}
+
 }  // namespace lodforge::symmetry

@@ -222,8 +222,9 @@ MirrorFigures mirror_figures(const Mesh& lod, const Mesh& input, const std::vect
 }
 
 // Per ratio: the LOD without and with the symmetry term; targets as printed.
+// `polychord`: the quad engine on the mesh as it is (quads kept), the figures on its LODs triangulated.
 void run_simplify(const std::string& name, const Mesh& mesh, const std::vector<double>& ratios, double weight,
-                  std::vector<std::string>& misses) {
+                  bool polychord, std::vector<std::string>& misses) {
   const symmetry::SymmetryMap s = symmetry::detect_symmetry(triangulated(mesh));
   if (!s.found()) {
     std::printf("%-34s no symmetry found: skipped\n", name.c_str());
@@ -238,14 +239,17 @@ void run_simplify(const std::string& name, const Mesh& mesh, const std::vector<d
               tris.triangle_count(), s.symmetric_fraction(), input.mirror_error, input.paired);
   for (double ratio : ratios) {
     const auto t0 = Clock::now();
-    const SimplifyResult plain = simplify(tris, {.target_ratio = ratio});
+    const Engine engine = polychord ? Engine::polychord : Engine::edge_collapse;
+    const Mesh& source = polychord ? mesh : tris;
+    const SimplifyResult plain = simplify(source, {.target_ratio = ratio, .engine = engine});
     const double plain_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
     const auto t1 = Clock::now();
-    const SimplifyResult sym = simplify(tris, {.target_ratio = ratio, .symmetry_weight = weight});
+    const SimplifyResult sym = simplify(source, {.target_ratio = ratio, .engine = engine, .symmetry_weight = weight});
     const double sym_ms = std::chrono::duration<double, std::milli>(Clock::now() - t1).count();
-    const MirrorFigures a = mirror_figures(plain.mesh, tris, region, s.plane, diagonal);
-    const MirrorFigures b = mirror_figures(sym.mesh, tris, region, s.plane, diagonal);
-    const double mean_a = evaluate(tris, plain.mesh).mean_rel() * 100, mean_b = evaluate(tris, sym.mesh).mean_rel() * 100;
+    const Mesh plain_lod = triangulated(plain.mesh), sym_lod = triangulated(sym.mesh);
+    const MirrorFigures a = mirror_figures(plain_lod, tris, region, s.plane, diagonal);
+    const MirrorFigures b = mirror_figures(sym_lod, tris, region, s.plane, diagonal);
+    const double mean_a = evaluate(tris, plain_lod).mean_rel() * 100, mean_b = evaluate(tris, sym_lod).mean_rel() * 100;
     const double mirror_limit = std::max(1.1 * input.mirror_error, 0.01);
     const bool ok_paired = b.paired >= 0.95, ok_mirror = b.mirror_error <= mirror_limit,
                ok_mean = mean_b <= 1.05 * mean_a;
@@ -291,19 +295,27 @@ int main(int argc, char** argv) {
                "mirrored from one half with noise");
   app.add_option("--weight", weight, "symmetry_weight of the runs with the term");
   app.add_option("--noise", noise, "noise on the mirrored scans, a fraction of the diagonal");
+  std::string engine = "edge_collapse";
+  app.add_option("--engine", engine,
+                 "with --simplify: edge_collapse, or polychord (the quad engine; the default meshes then are the "
+                 "quad corpus meshes, without the mirrored scans)")
+      ->check(CLI::IsMember({"edge_collapse", "polychord"}));
   CLI11_PARSE(app, argc, argv);
   if (simplify_mode) {
     const tbb::global_control one(tbb::global_control::max_allowed_parallelism,
                                   threads > 0 ? static_cast<std::size_t>(threads) : tbb::this_task_arena::max_concurrency());
     const std::vector<double> ratios = {0.5, 0.25};
     std::vector<std::string> misses;
+    const bool polychord = engine == "polychord";
     if (app.count("files") == 0) {
       files = {"quad/makehuman_base_hm08.obj", "quad/makehuman_male_generic.obj", "quad/makehuman_proxy741.obj",
                "quad/spot_quadrangulated.obj", "quad/blub_quadrangulated.obj"};
+      if (polychord) files.push_back("quad/suzanne.obj");
       for (const char* scan : {"scanned/stanford-bunny.obj", "scanned/armadillo-remeshed-29k.obj"}) {
+        if (polychord) break;
         try {
           run_simplify(std::string(scan) + " mirrored", mirrored_half(io::load_asset(corpus + "/" + scan).meshes.at(0), noise),
-                       ratios, weight, misses);
+                       ratios, weight, polychord, misses);
         } catch (const std::exception& e) {
           std::printf("%-34s skipped: %s\n", scan, e.what());
         }
@@ -311,7 +323,7 @@ int main(int argc, char** argv) {
     }
     for (const std::string& f : files) {
       try {
-        run_simplify(f, io::load_asset(corpus + "/" + f).meshes.at(0), ratios, weight, misses);
+        run_simplify(f, io::load_asset(corpus + "/" + f).meshes.at(0), ratios, weight, polychord, misses);
       } catch (const std::exception& e) {
         std::printf("%-34s skipped: %s\n", f.c_str(), e.what());
       }

@@ -28,6 +28,7 @@
 #include "lodforge/core/mesh.hpp"
 #include "lodforge/core/stop.hpp"
 #include "lodforge/quad/polychord.hpp"
+#include "lodforge/symmetry/symmetry.hpp"
 
 namespace lodforge::quad {
 
@@ -108,6 +109,16 @@ struct PolychordOptions {
   // segments between the merged wedges' UVs, snapped to the nearest of them at a seam vertex). False: the
   // survivor's values, unchanged (all LODs can share one vertex buffer).
   bool optimal_attributes = true;
+  // Soft symmetry (SimplifyOptions::symmetry_weight; 0 = off). Above 0 the mesh's mirror symmetry is found
+  // (symmetry/symmetry.hpp), or taken from vertex_mirror where given (one entry per input vertex), and a run
+  // whose mirror image is a run of rungs too (of another chord, or of the same chord) collapses with it in
+  // one weld, ranked by the two runs' summed cost per removed triangle, its mirror's islands placed at the
+  // mirror images of its own; a run whose mirror image is no run (or is refused) ranks (1 + symmetry_weight)
+  // times worse first, then goes alone. Runs outside the symmetric region and runs that are their own mirror
+  // image rank as without it.
+  double symmetry_weight = 0.0;
+  symmetry::PlaneMode symmetry_plane = symmetry::PlaneMode::automatic;
+  const std::vector<std::uint32_t>* vertex_mirror = nullptr;
   // Polled every few hundred steps of the collapse loop; once requested, the mesh as far as it got is returned
   // (without the surface fit) with PolychordResult::stopped set.
   StopRequest stop{};
@@ -120,6 +131,7 @@ struct PolychordResult {
   bool target_reached = false;
   double error_bound_abs = 0;  // running maximum over collapsed islands of sqrt(E / area)
   std::size_t collapses = 0;   // committed runs
+  std::size_t paired_collapses = 0;  // of those, runs made together with their mirror image (symmetry_weight)
   std::size_t diagonal_collapses = 0;  // committed diagonal collapses
   std::size_t rejected = 0;    // runs the weld refused
   std::size_t over_budget = 0; // runs and diagonal collapses left out for exceeding the error budget

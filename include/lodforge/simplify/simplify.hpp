@@ -174,11 +174,12 @@ struct SimplifyOptions {
   double skin_weight_threshold = 0.1;
   double skin_max_distance = 0.5;
 
-  // --- symmetry (edge_collapse engine; the polychord engine's triangle phase) ---
+  // --- symmetry (edge_collapse and polychord engines) ---
   // How strongly mirror pairs are favoured; 0 = off. Above 0 the mesh's mirror symmetry is found
   // (symmetry/symmetry.hpp) and an edge whose mirror image is also an edge collapses together with it, as one
-  // candidate costing the pair's mean; a collapse that would break the symmetry (its mirror edge is gone or
-  // refused) costs (1 + symmetry_weight) times its own error. Soft: painted priority on one side still keeps
+  // candidate costing the pair's mean (the polychord engine: a run of rungs and its mirror run, see
+  // quad::PolychordOptions::symmetry_weight; its triangle phase pairs edges); a collapse that would break the
+  // symmetry (its mirror is gone or refused) costs (1 + symmetry_weight) times its own error. Soft: painted priority on one side still keeps
   // that side, and asymmetric regions simplify as without it. multiple_choice, cluster and tiled runs ignore it.
   double symmetry_weight = 0.0;
   symmetry::PlaneMode symmetry_plane = symmetry::PlaneMode::automatic;

@@ -69,4 +69,8 @@ struct SymmetryMap {
 SymmetryMap detect_symmetry(const Mesh& mesh, const Topology& topo, const SymmetryOptions& options = {});
 SymmetryMap detect_symmetry(const Mesh& mesh, const SymmetryOptions& options = {});
 
+// The plane of a given vertex mirror map (mirror[v]: v's mirror, itself on the plane, kInvalidIndex: none):
+// normal along the mean difference of the pairs, through their mean midpoint. None without a pair.
+std::optional<Plane> plane_of_pairs(const Mesh& mesh, const std::vector<std::uint32_t>& mirror);
+
 }  // namespace lodforge::symmetry
