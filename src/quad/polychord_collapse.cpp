@@ -209,6 +209,9 @@ class Engine {
   // Islands that are each other's mirror image get mirrored places: the one holding the popped run's
   // vertices (`own`, sorted) keeps its optimum; an island that is its own image goes onto the plane.
   void mirror_places(IslandPlan& plan, const std::vector<std::uint32_t>& own) const;
+  // Per island, the island that is its mirror image (every member's mirror in it, the same size; itself for
+  // an island on the plane), or kInvalidIndex.
+  std::vector<std::uint32_t> island_images(const std::vector<std::vector<std::uint32_t>>& islands) const;
   // After a weld: survivors of islands that mirror each other mirror each other; every other island vertex
   // and its partner lose their mirror.
   void update_mirror(const std::vector<std::vector<std::uint32_t>>& islands, const std::vector<std::uint32_t>& survivors);
@@ -1184,15 +1187,7 @@ void Engine::requeue_alone(std::uint32_t id) {
 
 void Engine::mirror_places(IslandPlan& plan, const std::vector<std::uint32_t>& own) const {
   const std::size_t n = plan.islands.size();
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> member;  // (vertex, island), sorted
-  for (std::uint32_t i = 0; i < n; ++i) {
-    for (std::uint32_t v : plan.islands[i]) member.emplace_back(v, i);
-  }
-  std::sort(member.begin(), member.end());
-  auto island_of = [&](std::uint32_t v) {
-    const auto it = std::lower_bound(member.begin(), member.end(), std::pair{v, 0u});
-    return it != member.end() && it->first == v ? it->second : kInvalidIndex;
-  };
+  const std::vector<std::uint32_t> image = island_images(plan.islands);
   auto holds_own = [&](std::uint32_t i) {
     return std::any_of(plan.islands[i].begin(), plan.islands[i].end(),
                        [&](std::uint32_t v) { return std::binary_search(own.begin(), own.end(), v); });
@@ -1202,13 +1197,8 @@ void Engine::mirror_places(IslandPlan& plan, const std::vector<std::uint32_t>& o
   };
   bool changed = false;
   for (std::uint32_t i = 0; i < n; ++i) {
-    const std::vector<std::uint32_t>& island = plan.islands[i];
-    const std::uint32_t j = mirror_[island[0]] == kInvalidIndex ? kInvalidIndex : island_of(mirror_[island[0]]);
-    if (j == kInvalidIndex || plan.islands[j].size() != island.size()) continue;
-    const bool image = std::all_of(island.begin(), island.end(), [&](std::uint32_t v) {
-      return mirror_[v] != kInvalidIndex && island_of(mirror_[v]) == j;
-    });
-    if (!image) continue;
+    const std::uint32_t j = image[i];
+    if (j == kInvalidIndex) continue;
     if (j == i) {
       if (has_locked(i)) continue;
       const Vec3d& x = plan.positions[i];
@@ -1231,10 +1221,9 @@ void Engine::mirror_places(IslandPlan& plan, const std::vector<std::uint32_t>& o
   }
 }
 
-void Engine::update_mirror(const std::vector<std::vector<std::uint32_t>>& islands,
-                           const std::vector<std::uint32_t>& survivors) {
+std::vector<std::uint32_t> Engine::island_images(const std::vector<std::vector<std::uint32_t>>& islands) const {
   const std::size_t n = islands.size();
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> member;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> member;  // (vertex, island), sorted
   for (std::uint32_t i = 0; i < n; ++i) {
     for (std::uint32_t v : islands[i]) member.emplace_back(v, i);
   }
@@ -1245,19 +1234,31 @@ void Engine::update_mirror(const std::vector<std::vector<std::uint32_t>>& island
   };
   std::vector<std::uint32_t> image(n, kInvalidIndex);
   for (std::uint32_t i = 0; i < n; ++i) {
-    const std::uint32_t j = mirror_[islands[i][0]] == kInvalidIndex ? kInvalidIndex : island_of(mirror_[islands[i][0]]);
+    const std::uint32_t m = mirror_[islands[i][0]];
+    const std::uint32_t j = m == kInvalidIndex ? kInvalidIndex : island_of(m);
     if (j == kInvalidIndex || islands[j].size() != islands[i].size()) continue;
     if (std::all_of(islands[i].begin(), islands[i].end(),
                     [&](std::uint32_t v) { return mirror_[v] != kInvalidIndex && island_of(mirror_[v]) == j; })) {
       image[i] = j;
     }
   }
-  for (const auto& [v, i] : member) {
+  return image;
+}
+
+void Engine::update_mirror(const std::vector<std::vector<std::uint32_t>>& islands,
+                           const std::vector<std::uint32_t>& survivors) {
+  const std::vector<std::uint32_t> image = island_images(islands);
+  std::vector<std::uint32_t> members;
+  for (const auto& island : islands) members.insert(members.end(), island.begin(), island.end());
+  std::sort(members.begin(), members.end());
+  for (std::uint32_t v : members) {
     const std::uint32_t m = mirror_[v];
-    if (m != kInvalidIndex && island_of(m) == kInvalidIndex && mirror_[m] == v) mirror_[m] = kInvalidIndex;
+    if (m != kInvalidIndex && !std::binary_search(members.begin(), members.end(), m) && mirror_[m] == v) {
+      mirror_[m] = kInvalidIndex;
+    }
   }
-  for (const auto& [v, i] : member) mirror_[v] = kInvalidIndex;
-  for (std::uint32_t i = 0; i < n; ++i) {
+  for (std::uint32_t v : members) mirror_[v] = kInvalidIndex;
+  for (std::uint32_t i = 0; i < islands.size(); ++i) {
     if (image[i] != kInvalidIndex) mirror_[survivors[i]] = survivors[image[i]];
   }
 }

@@ -1,5 +1,7 @@
 #include "test_support.hpp"
 
+#include "lodforge/core/topology.hpp"
+
 #include <sys/wait.h>
 
 #include <algorithm>
@@ -8,7 +10,9 @@
 #include <cstdio>
 #include <cstdlib>
 #include <numbers>
+#include <set>
 #include <system_error>
+#include <utility>
 
 namespace lodforge::testing {
 
@@ -287,6 +291,30 @@ Mesh make_two_bone_cylinder(int rings, int segments, float band_start, float ban
     }
   }
   return with_default_material(std::move(m));
+}
+
+double mirror_paired_fraction(const Mesh& mesh, double plane_x, double tol) {
+  const Topology topo = build_topology(mesh);
+  std::vector<std::uint32_t> image(mesh.vertex_count(), kInvalidIndex);
+  for (std::uint32_t v = 0; v < mesh.vertex_count(); ++v) {
+    Vec3f p = mesh.positions[v];
+    p[0] = static_cast<float>(2.0 * plane_x - p[0]);
+    for (std::uint32_t w = 0; w < mesh.vertex_count(); ++w) {
+      const Vec3f d = mesh.positions[w] - p;
+      if (std::sqrt(static_cast<double>(dot(d, d))) <= tol) {
+        image[v] = w;
+        break;
+      }
+    }
+  }
+  std::set<std::pair<std::uint32_t, std::uint32_t>> edges;
+  for (const auto& e : topo.edges) edges.insert(std::minmax(e[0], e[1]));
+  std::size_t paired = 0;
+  for (const auto& e : topo.edges) {
+    const std::uint32_t a = image[e[0]], b = image[e[1]];
+    paired += a != kInvalidIndex && b != kInvalidIndex && a != b && edges.count(std::minmax(a, b)) > 0;
+  }
+  return topo.edges.empty() ? 1.0 : static_cast<double>(paired) / static_cast<double>(topo.edges.size());
 }
 
 }  // namespace lodforge::testing

@@ -76,4 +76,8 @@ Mesh tilted(Mesh mesh);
 // exporters do: same face, same winding): repeated_faces() lists exactly the copies.
 Mesh with_repeated_faces(const Mesh& mesh, std::size_t every);
 
+// Of the mesh's edges (polygon sides), the share whose mirror image through the plane x = plane_x is an edge
+// too (each end within `tol` of a vertex).
+double mirror_paired_fraction(const Mesh& mesh, double plane_x, double tol);
+
 }  // namespace lodforge::testing

@@ -6,15 +6,13 @@
 #include <cstdint>
 #include <numbers>
 #include <random>
-#include <set>
-#include <utility>
 #include <vector>
 
-#include "lodforge/core/topology.hpp"
 #include "lodforge/quad/polychord_collapse.hpp"
 #include "lodforge/quad/quad_stats.hpp"
 #include "lodforge/simplify/simplify.hpp"
 #include "quad_meshes.hpp"
+#include "test_support.hpp"
 
 namespace lodforge::quad {
 namespace {
@@ -49,31 +47,6 @@ Mesh mirrored_torus(int major, int minor, double noise) {
 constexpr int kMajor = 48, kMinor = 16;
 constexpr double kNoise = 1e-6;
 
-// Of the mesh's edges, the share whose mirror image through x = 0 is an edge too (each end within `tol` of a
-// vertex).
-double paired_fraction(const Mesh& mesh, double tol) {
-  const Topology topo = build_topology(mesh);
-  std::vector<std::uint32_t> image(mesh.vertex_count(), kInvalidIndex);
-  for (std::uint32_t v = 0; v < mesh.vertex_count(); ++v) {
-    Vec3f p = mesh.positions[v];
-    p[0] = -p[0];
-    for (std::uint32_t w = 0; w < mesh.vertex_count(); ++w) {
-      const Vec3f d = mesh.positions[w] - p;
-      if (std::sqrt(static_cast<double>(dot(d, d))) <= tol) {
-        image[v] = w;
-        break;
-      }
-    }
-  }
-  std::set<std::pair<std::uint32_t, std::uint32_t>> edges;
-  for (const auto& e : topo.edges) edges.insert(std::minmax(e[0], e[1]));
-  std::size_t paired = 0;
-  for (const auto& e : topo.edges) {
-    const std::uint32_t a = image[e[0]], b = image[e[1]];
-    paired += a != kInvalidIndex && b != kInvalidIndex && a != b && edges.count(std::minmax(a, b)) > 0;
-  }
-  return topo.edges.empty() ? 1.0 : static_cast<double>(paired) / static_cast<double>(topo.edges.size());
-}
 
 // Mirrored vertices are put at each other's images through the plane found from the noisy input: well
 // within this of each other, which is far below an edge (about 0.4).
@@ -81,7 +54,7 @@ constexpr double kMirrorTolerance = 1e-3;
 
 TEST(PolychordSymmetry, PairsKeepAMirroredQuadMeshSymmetric) {
   const Mesh mesh = mirrored_torus(kMajor, kMinor, kNoise);
-  ASSERT_GT(paired_fraction(mesh, kMirrorTolerance), 0.99);
+  ASSERT_GT(testing::mirror_paired_fraction(mesh, 0.0, kMirrorTolerance), 0.99);
   for (double ratio : {0.5, 0.25}) {
     const PolychordResult plain = simplify_polychord(mesh, {.target_ratio = ratio});
     const PolychordResult sym = simplify_polychord(mesh, {.target_ratio = ratio, .symmetry_weight = 1.0});
@@ -89,8 +62,8 @@ TEST(PolychordSymmetry, PairsKeepAMirroredQuadMeshSymmetric) {
     EXPECT_GT(sym.paired_collapses, sym.collapses / 2) << ratio;
     EXPECT_NEAR(static_cast<double>(sym.triangles_after), static_cast<double>(plain.triangles_after),
                 0.03 * static_cast<double>(plain.triangles_after));
-    const double with = paired_fraction(sym.mesh, kMirrorTolerance);
-    const double without = paired_fraction(plain.mesh, kMirrorTolerance);
+    const double with = testing::mirror_paired_fraction(sym.mesh, 0.0, kMirrorTolerance);
+    const double without = testing::mirror_paired_fraction(plain.mesh, 0.0, kMirrorTolerance);
     EXPECT_GE(with, 0.95) << "ratio " << ratio << ", without the term " << without;
     EXPECT_GT(with, without) << ratio;
     EXPECT_GT(quad_stats(sym.mesh).quad_fraction, 0.8) << ratio;
@@ -102,7 +75,7 @@ TEST(PolychordSymmetry, SimplifyPassesTheTermToTheQuadEngine) {
   const Mesh mesh = mirrored_torus(kMajor, kMinor, kNoise);
   const SimplifyResult r = simplify(mesh, {.target_ratio = 0.5, .engine = Engine::polychord, .symmetry_weight = 1.0});
   EXPECT_GT(r.paired_collapses, r.collapses / 2);
-  EXPECT_GE(paired_fraction(r.mesh, kMirrorTolerance), 0.95);
+  EXPECT_GE(testing::mirror_paired_fraction(r.mesh, 0.0, kMirrorTolerance), 0.95);
 }
 
 TEST(PolychordSymmetry, AGivenMirrorMapIsUsedAsIs) {
@@ -114,7 +87,7 @@ TEST(PolychordSymmetry, AGivenMirrorMapIsUsedAsIs) {
   const PolychordResult given =
       simplify_polychord(mesh, {.target_ratio = 0.4, .symmetry_weight = 1.0, .vertex_mirror = &mirror});
   EXPECT_GT(given.paired_collapses, given.collapses / 2);
-  EXPECT_GE(paired_fraction(given.mesh, kMirrorTolerance), 0.95);
+  EXPECT_GE(testing::mirror_paired_fraction(given.mesh, 0.0, kMirrorTolerance), 0.95);
   // A map of the wrong size is ignored: no pairs.
   const std::vector<std::uint32_t> wrong(3, 0);
   EXPECT_EQ(simplify_polychord(mesh, {.target_ratio = 0.4, .symmetry_weight = 1.0, .vertex_mirror = &wrong})

@@ -50,46 +50,21 @@ Mesh mirrored_terrain(int n, int m, double noise) {
   return mesh;
 }
 
-// Of the mesh's edges, the share whose mirror image through x = plane_x is an edge too (each end within `tol`
-// of a vertex).
-double paired_fraction(const Mesh& mesh, double plane_x, double tol) {
-  const Topology topo = build_topology(mesh);
-  std::vector<std::uint32_t> image(mesh.vertex_count(), kInvalidIndex);
-  for (std::uint32_t v = 0; v < mesh.vertex_count(); ++v) {
-    Vec3f p = mesh.positions[v];
-    p[0] = static_cast<float>(2.0 * plane_x - p[0]);
-    for (std::uint32_t w = 0; w < mesh.vertex_count(); ++w) {
-      const Vec3f d = mesh.positions[w] - p;
-      if (std::sqrt(static_cast<double>(dot(d, d))) <= tol) {
-        image[v] = w;
-        break;
-      }
-    }
-  }
-  std::set<std::pair<std::uint32_t, std::uint32_t>> edges;
-  for (const auto& e : topo.edges) edges.insert(std::minmax(e[0], e[1]));
-  std::size_t paired = 0;
-  for (const auto& e : topo.edges) {
-    const std::uint32_t a = image[e[0]], b = image[e[1]];
-    paired += a != kInvalidIndex && b != kInvalidIndex && a != b && edges.count(std::minmax(a, b)) > 0;
-  }
-  return topo.edges.empty() ? 1.0 : static_cast<double>(paired) / static_cast<double>(topo.edges.size());
-}
 
 constexpr int kHalf = 16, kRows = 24;
 constexpr double kNoise = 1e-5;  // about 1e-6 of the diagonal
 
 TEST(SymmetricCollapse, PairsKeepAMirroredMeshSymmetric) {
   const Mesh mesh = mirrored_terrain(kHalf, kRows, kNoise);
-  ASSERT_GT(paired_fraction(mesh, kHalf, 0.01), 0.99);
+  ASSERT_GT(testing::mirror_paired_fraction(mesh, kHalf, 0.01), 0.99);
   for (double ratio : {0.5, 0.25}) {
     const SimplifyResult plain = simplify(mesh, {.target_ratio = ratio});
     const SimplifyResult sym = simplify(mesh, {.target_ratio = ratio, .symmetry_weight = 1.0});
     EXPECT_NEAR(static_cast<double>(sym.triangles_after), static_cast<double>(plain.triangles_after), 4.0);
     EXPECT_GT(sym.paired_collapses, sym.collapses / 2) << ratio;
     EXPECT_EQ(plain.paired_collapses, 0u);
-    const double with = paired_fraction(sym.mesh, kHalf, 0.01);
-    const double without = paired_fraction(plain.mesh, kHalf, 0.01);
+    const double with = testing::mirror_paired_fraction(sym.mesh, kHalf, 0.01);
+    const double without = testing::mirror_paired_fraction(plain.mesh, kHalf, 0.01);
     EXPECT_GE(with, 0.95) << "ratio " << ratio << ", without the term " << without;
     EXPECT_GT(with, without) << ratio;
     EXPECT_TRUE(validate(sym.mesh).ok());
@@ -104,8 +79,8 @@ TEST(SymmetricCollapse, AGivenMirrorMapIsUsedAsIs) {
   }
   const SimplifyResult found = simplify(mesh, {.target_ratio = 0.3, .symmetry_weight = 1.0});
   const SimplifyResult given = simplify(mesh, {.target_ratio = 0.3, .symmetry_weight = 1.0, .vertex_mirror = &mirror});
-  EXPECT_GE(paired_fraction(found.mesh, kHalf, 0.01), 0.95);
-  EXPECT_GE(paired_fraction(given.mesh, kHalf, 0.01), 0.95);
+  EXPECT_GE(testing::mirror_paired_fraction(found.mesh, kHalf, 0.01), 0.95);
+  EXPECT_GE(testing::mirror_paired_fraction(given.mesh, kHalf, 0.01), 0.95);
   EXPECT_GT(given.paired_collapses, given.collapses / 2);
   // A map of the wrong size is ignored: no pairs.
   const std::vector<std::uint32_t> wrong(3, 0);
