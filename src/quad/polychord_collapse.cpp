@@ -1087,14 +1087,18 @@ std::optional<MirrorRun> Engine::mirror_run(std::uint32_t id, const Candidate& c
   // The image's rung indices in `other`, in the run's order (on a closed chord they may wrap past its start).
   std::vector<std::uint32_t> index;
   if (whole && run_closed && o.trace.closed && size == n) {
-    // A whole closed chord's image is a whole closed chord, traced from wherever.
-    std::vector<Rung> a = image, b;
-    for (const Rung& r : rs) b.push_back(sorted(r));
-    std::sort(a.begin(), a.end());
-    std::sort(b.begin(), b.end());
-    if (a == b) {
-      for (std::uint32_t k = 0; k < n; ++k) index.push_back(k);
+    // A whole closed chord's image is a whole closed chord, traced from wherever: each image rung's index.
+    std::vector<std::pair<Rung, std::uint32_t>> where;
+    for (std::uint32_t k = 0; k < size; ++k) where.emplace_back(sorted(rs[k]), k);
+    std::sort(where.begin(), where.end());
+    for (const Rung& r : image) {
+      const auto it = std::lower_bound(where.begin(), where.end(), std::pair{r, 0u});
+      if (it == where.end() || it->first != r) break;
+      index.push_back(it->second);
     }
+    std::vector<std::uint32_t> distinct = index;
+    std::sort(distinct.begin(), distinct.end());
+    if (index.size() != n || std::adjacent_find(distinct.begin(), distinct.end()) != distinct.end()) index.clear();
   } else if (n <= size) {
     for (int step : {1, -1}) {
       index.clear();
@@ -1449,7 +1453,9 @@ PolychordResult Engine::collapse() {
     if (!mirror_.empty()) update_mirror(islands.islands, w.survivors);
     error_bound_ = std::max(error_bound_, islands.max_error);
     ++collapses_;
-    if (pairing == Pairing::pair) {
+    if (pairing == Pairing::pair && mirror.covers) {
+      ++paired_;  // one run that holds its image
+    } else if (pairing == Pairing::pair) {
       ++collapses_;
       paired_ += 2;
     }
