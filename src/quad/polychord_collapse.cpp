@@ -214,7 +214,8 @@ class Engine {
   std::vector<std::uint32_t> island_images(const std::vector<std::vector<std::uint32_t>>& islands) const;
   // After a weld: survivors of islands that mirror each other mirror each other; every other island vertex
   // and its partner lose their mirror.
-  void update_mirror(const std::vector<std::vector<std::uint32_t>>& islands, const std::vector<std::uint32_t>& survivors);
+  void update_mirror(const std::vector<std::vector<std::uint32_t>>& islands,
+                     const std::vector<std::uint32_t>& survivors);
   // The surface fit moves each vertex by its own least-squares step, which mirrored vertices take alike only
   // up to what differs around them: mirrored moved vertices meet halfway (one at the other's mirror image),
   // moved ones on the plane go onto it.
@@ -232,6 +233,8 @@ class Engine {
   }
   double diagonal_top();  // key of the best live diagonal entry (stale ones dropped), +inf when none
   bool block_failing_rungs(Chord& chord, const Candidate& c);
+  // Whether the weld (a dry run) or the skin rule refuses these rungs collapsed as one run.
+  bool refused_alone(const std::vector<std::array<std::uint32_t, 2>>& rungs);
   void refuse(std::uint32_t id, const Candidate& c);
   // A run and its mirror image refused together, where at least one half fails alone too: each failing
   // half's failing rungs are blocked (or its whole chord, or its run length halved) and the same is done to
@@ -857,17 +860,21 @@ bool Engine::block_failing_rungs(Chord& chord, const Candidate& c) {
     chord.blocked[c.first] = 1;
     return true;
   }
-  WeldOptions check = weld_options_;
-  check.dry_run = true;
   bool any = false;
   for (std::uint32_t k = c.first; k <= c.last; ++k) {
-    const IslandPlan single = plan(chord, Candidate{.first = k, .last = k});
-    if (!skin_allows(single.islands) || !qm_.weld(single.islands, single.positions, check).ok()) {
+    if (refused_alone({chord.trace.rungs[k]})) {
       chord.blocked[k] = 1;
       any = true;
     }
   }
   return any;
+}
+
+bool Engine::refused_alone(const std::vector<std::array<std::uint32_t, 2>>& rungs) {
+  WeldOptions check = weld_options_;
+  check.dry_run = true;
+  const IslandPlan p = plan_rungs(rungs);
+  return !skin_allows(p.islands) || !qm_.weld(p.islands, p.positions, check).ok();
 }
 
 // After the weld refused run c of chord `id`: the whole chord is not tried again, or the rungs that fail on
@@ -896,11 +903,8 @@ void Engine::refuse_pair(std::uint32_t id, const Candidate& c, const MirrorRun& 
     if (run_fails) any |= block_failing_rungs(a, c);
     if (mirror_fails) {
       // block_failing_rungs() takes a range; the image's rungs are tested one by one instead (it may wrap).
-      WeldOptions check = weld_options_;
-      check.dry_run = true;
       for (std::uint32_t k : m.index) {
-        const IslandPlan single = plan_rungs({b.trace.rungs[k]});
-        if (!skin_allows(single.islands) || !qm_.weld(single.islands, single.positions, check).ok()) {
+        if (refused_alone({b.trace.rungs[k]})) {
           b.blocked[k] = 1;
           any = true;
         }
@@ -1104,7 +1108,8 @@ std::optional<MirrorRun> Engine::mirror_run(std::uint32_t id, const Candidate& c
       index.clear();
       for (std::size_t t = 0; t < n; ++t) {
         long long k = static_cast<long long>(at) + step * static_cast<long long>(t);
-        if (o.trace.closed) k = (k % static_cast<long long>(size) + static_cast<long long>(size)) % static_cast<long long>(size);
+        const auto wrap = static_cast<long long>(size);
+        if (o.trace.closed) k = (k % wrap + wrap) % wrap;
         if (k < 0 || k >= static_cast<long long>(size) || sorted(rs[static_cast<std::size_t>(k)]) != image[t]) break;
         index.push_back(static_cast<std::uint32_t>(k));
       }
@@ -1118,7 +1123,8 @@ std::optional<MirrorRun> Engine::mirror_run(std::uint32_t id, const Candidate& c
   m.wraps = m.last - m.first + 1 != n;
   // Within one chord, a run overlapping its image (it crosses the plane off centre) grows to the run that
   // covers both, its own image.
-  if (other == id && std::any_of(index.begin(), index.end(), [&](std::uint32_t k) { return k >= c.first && k <= c.last; })) {
+  const auto in_run = [&](std::uint32_t k) { return k >= c.first && k <= c.last; };
+  if (other == id && std::any_of(index.begin(), index.end(), in_run)) {
     if (m.wraps) return std::nullopt;
     m.covers = true;
     m.first = std::min(m.first, c.first);
@@ -1426,16 +1432,10 @@ PolychordResult Engine::collapse() {
         // The pair failed together. Each half the weld refuses on its own is refused as a single run would
         // be (its failing rungs blocked, so both sides leave the same rungs out); where neither is, they fail
         // only together, and the run goes alone later.
-        WeldOptions check = weld_options_;
-        check.dry_run = true;
-        auto fails_alone = [&](const std::vector<std::array<std::uint32_t, 2>>& half) {
-          const IslandPlan solo = plan_rungs(half);
-          return !skin_allows(solo.islands) || !qm_.weld(solo.islands, solo.positions, check).ok();
-        };
         const Polychord& trace_now = chords_[e.chord].trace;
         const bool run_fails =
-            fails_alone({trace_now.rungs.begin() + candidate.first, trace_now.rungs.begin() + candidate.last + 1});
-        const bool mirror_fails = !mirror.covers && fails_alone(mirror.rungs);
+            refused_alone({trace_now.rungs.begin() + candidate.first, trace_now.rungs.begin() + candidate.last + 1});
+        const bool mirror_fails = !mirror.covers && refused_alone(mirror.rungs);
         if (mirror.covers && run_fails) {
           refuse(e.chord, candidate);
         } else if (run_fails || mirror_fails) {

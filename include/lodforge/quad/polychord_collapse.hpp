@@ -112,8 +112,8 @@ struct PolychordOptions {
   // Soft symmetry (SimplifyOptions::symmetry_weight; 0 = off). Above 0 the mesh's mirror symmetry is found
   // (symmetry/symmetry.hpp), or taken from vertex_mirror where given (one entry per input vertex), and a run
   // whose mirror image is a run of rungs too (of another chord, or of the same chord) collapses with it in
-  // one weld, ranked by the two runs' summed cost per removed triangle, its mirror's islands placed at the
-  // mirror images of its own; a run whose mirror image is no run (or is refused) ranks (1 + symmetry_weight)
+  // one weld, ranked by the mean of the two runs' keys, its mirror's islands placed at the mirror images of
+  // its own; a run whose mirror image is no run (or is refused) ranks (1 + symmetry_weight)
   // times worse first, then goes alone. Runs outside the symmetric region and runs that are their own mirror
   // image rank as without it.
   double symmetry_weight = 0.0;

@@ -179,8 +179,8 @@ struct SimplifyOptions {
   // (symmetry/symmetry.hpp) and an edge whose mirror image is also an edge collapses together with it, as one
   // candidate costing the pair's mean (the polychord engine: a run of rungs and its mirror run, see
   // quad::PolychordOptions::symmetry_weight; its triangle phase pairs edges); a collapse that would break the
-  // symmetry (its mirror is gone or refused) costs (1 + symmetry_weight) times its own error. Soft: painted priority on one side still keeps
-  // that side, and asymmetric regions simplify as without it. multiple_choice, cluster and tiled runs ignore it.
+  // symmetry (its mirror is gone or refused) costs (1 + symmetry_weight) times its own error. Soft: painted
+  // priority on one side still keeps that side, and asymmetric regions simplify as without it. multiple_choice, cluster and tiled runs ignore it.
   double symmetry_weight = 0.0;
   symmetry::PlaneMode symmetry_plane = symmetry::PlaneMode::automatic;
   // The mirror vertex of each input vertex (itself on the plane, kInvalidIndex: none), where the caller found

@@ -33,8 +33,8 @@ Mesh mirrored_torus(int major, int minor, double noise) {
       const double u = 2.0 * std::numbers::pi * i / major, v = 2.0 * std::numbers::pi * j / minor;
       // sin(v) breaks the mirror through z = 0, so that x = 0 is the one plane.
       const double r = 1.0 + 0.25 * std::sin(3.0 * u) * std::cos(2.0 * v) + 0.1 * std::sin(u) + 0.15 * std::sin(v);
-      add_point(m, (3.0 + r * std::cos(v)) * std::cos(u) + jitter(rng), (3.0 + r * std::cos(v)) * std::sin(u) + jitter(rng),
-                r * std::sin(v) + jitter(rng));
+      const double ring = 3.0 + r * std::cos(v);
+      add_point(m, ring * std::cos(u) + jitter(rng), ring * std::sin(u) + jitter(rng), r * std::sin(v) + jitter(rng));
     }
   }
   auto id = [&](int i, int j) { return static_cast<std::uint32_t>((j % minor) * major + (i % major)); };
