@@ -590,6 +590,8 @@ const std::vector<Field<LodOptions>>& option_fields() {
       B::choice("tiling", &SimplifyOptions::tiling, kTilingNames),
       // The same lower bound SimplifyOptions::validate() sets.
       B::count("tile_triangles", &SimplifyOptions::tile_triangles, 100, std::numeric_limits<std::uint32_t>::max()),
+      B::choice("cluster_stage", &SimplifyOptions::cluster_stage, kTilingNames),
+      B::number("cluster_stage_factor", &SimplifyOptions::cluster_stage_factor, at_least(1)),
       symmetry_weight_field(),
       conservative_field(),
       max_volume_growth_field(),

@@ -259,8 +259,7 @@ void fit_memory(const Mesh& from, std::optional<std::uint64_t> limit, std::uint6
   const std::size_t left = *limit > held ? static_cast<std::size_t>(*limit - held) : 0;
   const tiling::MemoryPlan plan = tiling::plan_memory(from, options, left, std::max(options.threads, 1u));
   if (plan.force_tiling) {
-    options.tiling = TilingMode::on;
-    options.tile_triangles = plan.tile_triangles;
+    plan.apply(options);
     lod.memory_tile_triangles = plan.tile_triangles;
   } else if (!plan.fits) {
     const char* why = tiling::why_not_tileable(options);

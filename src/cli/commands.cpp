@@ -174,6 +174,7 @@ std::string with_option_names(const std::string& problem) {
       {"skin_weight_threshold", "--skin-threshold"},
       {"skin_max_distance", "--skin-max-distance"},
       {"tile_triangles", "--tile-triangles"},
+      {"cluster_stage_factor", "--cluster-stage-factor"},
       {"conservative", "--conservative"},
       {"max_volume_growth", "--max-volume-growth"},
       {"symmetry_weight", "--symmetry-weight"},
@@ -343,6 +344,7 @@ void register_simplify(CLI::App& app) {
     std::string symmetry_plane = "auto";
     double max_volume_growth_pct = -1;
     std::string tiling = "auto";
+    std::string cluster_stage = "auto";
     std::string memory_limit;
     bool evaluate = false;
     bool no_verify = false;
@@ -419,6 +421,16 @@ void register_simplify(CLI::App& app) {
   cmd->add_option("--tile-triangles", a->opt.tile_triangles,
                   "triangles per tile on the tiled path (at least 100)")
       ->default_val(a->opt.tile_triangles);
+  cmd->add_option("--cluster-stage", a->cluster_stage,
+                  "auto | on | off: on the tiled path, vertex-cluster the whole mesh to --cluster-stage-factor times "
+                  "the target first and let the edge engine finish from the clusters' source planes (auto: from "
+                  "4,000,000 triangles, where that is at most a quarter of the input, no locked vertices, no "
+                  "conservative mode; docs/tiling.md)")
+      ->default_val(a->cluster_stage)
+      ->check(CLI::IsMember({"auto", "on", "off"}));
+  cmd->add_option("--cluster-stage-factor", a->opt.cluster_stage_factor,
+                  "the cluster stage's output, in multiples of the target (at least 1)")
+      ->default_val(a->opt.cluster_stage_factor);
   cmd->add_option("--memory-limit", a->memory_limit,
                   "SIZE (512M, 4G; at least 16M): estimate each mesh's peak memory from its triangle count and tile "
                   "it, with tiles small enough, where one engine run would not fit; stream a binary PLY or OBJ "
@@ -428,6 +440,9 @@ void register_simplify(CLI::App& app) {
   cmd->callback([a] {
     SimplifyOptions opt = a->opt;
     opt.tiling = a->tiling == "on" ? TilingMode::on : a->tiling == "off" ? TilingMode::off : TilingMode::automatic;
+    opt.cluster_stage = a->cluster_stage == "on"    ? TilingMode::on
+                        : a->cluster_stage == "off" ? TilingMode::off
+                                                    : TilingMode::automatic;
     if (a->keep_attributes) opt.attribute_placement = AttributePlacement::keep;
     opt.seams = a->seams == "keep" ? SeamMode::keep : a->seams == "relax" ? SeamMode::relax : SeamMode::relax_materials;
     opt.max_error_rel = a->max_error_rel;
@@ -506,8 +521,7 @@ void register_simplify(CLI::App& app) {
           mesh_opt.max_error_rel = -1.0;
         }
         if (plans[i].force_tiling) {
-          mesh_opt.tiling = TilingMode::on;
-          mesh_opt.tile_triangles = plans[i].tile_triangles;
+          plans[i].apply(mesh_opt);
           std::printf("mesh %zu: about %zu MiB untiled, over --memory-limit %s: tiled in tiles of %zu triangles "
                       "(about %zu MiB)\n",
                       i, plans[i].untiled_bytes >> 20, a->memory_limit.c_str(), plans[i].tile_triangles,
@@ -519,6 +533,8 @@ void register_simplify(CLI::App& app) {
                     i, r.triangles_before, r.triangles_after, percent(r.qem_error_abs),
                     stop_reason_name(r.stop_reason),
                     r.timings.setup_ms + r.timings.initial_costs_ms + r.timings.collapse_ms + r.timings.output_ms);
+        if (r.cluster_stage_triangles > 0)
+          std::printf("  cluster stage: %zu triangles\n", r.cluster_stage_triangles);
         if (r.tiling_passes > 0)
           std::printf("  tiled: %zu pass(es), %zu tile run(s)\n", r.tiling_passes, r.tile_runs);
         if (opt.symmetry_weight > 0.0)

@@ -28,6 +28,57 @@ inline std::uint32_t next_corner(const Mesh& m, std::uint32_t f, std::uint32_t c
   return c + 1 == m.face_offsets[f + 1] ? m.face_offsets[f] : c + 1;
 }
 
+// The face of every corner.
+std::vector<std::uint32_t> corner_faces(const Mesh& mesh) {
+  std::vector<std::uint32_t> corner_face(mesh.corner_count());
+  for (std::uint32_t f = 0; f < mesh.face_count(); ++f) {
+    for (std::uint32_t c = mesh.face_offsets[f]; c < mesh.face_offsets[f + 1]; ++c) corner_face[c] = f;
+  }
+  return corner_face;
+}
+
+// Corners around each vertex joined into fans across its two-face edges; `edge(e, valence, consistent)` is
+// called for every edge (consistent: a two-face edge its faces traverse in opposite directions).
+template <class EdgeVisitor>
+UnionFind fans_of(const Mesh& mesh, const Topology& topo, const std::vector<std::uint32_t>& corner_face,
+                  EdgeVisitor&& edge) {
+  UnionFind fans(mesh.corner_count());
+  for (std::size_t e = 0; e < topo.edge_count(); ++e) {
+    const std::uint32_t val = topo.edge_valence(e);
+    const std::uint32_t* cs = &topo.edge_corner[topo.edge_corner_offsets[e]];
+    if (val != 2) {
+      edge(e, val, false);
+      continue;
+    }
+    const std::uint32_t c0 = cs[0], c1 = cs[1];
+    const std::uint32_t n0 = next_corner(mesh, corner_face[c0], c0), n1 = next_corner(mesh, corner_face[c1], c1);
+    const bool same_direction = mesh.corner_vertex(c0) == mesh.corner_vertex(c1);
+    if (same_direction) {
+      fans.unite(c0, c1);
+      fans.unite(n0, n1);
+    } else {
+      fans.unite(c0, n1);
+      fans.unite(n0, c1);
+    }
+    edge(e, val, !same_direction);
+  }
+  return fans;
+}
+
+// Per vertex, 1 where its corners form more than one fan.
+std::vector<std::uint8_t> several_fans(const Mesh& mesh, UnionFind& fans) {
+  const std::size_t nv = mesh.vertex_count();
+  std::vector<std::uint32_t> fan_root(nv, kInvalidIndex);
+  std::vector<std::uint8_t> several(nv, 0);
+  for (std::uint32_t c = 0; c < mesh.corner_count(); ++c) {
+    const std::uint32_t v = mesh.corner_vertex(c);
+    const std::uint32_t r = fans.find(c);
+    if (fan_root[v] == kInvalidIndex) fan_root[v] = r;
+    else if (fan_root[v] != r) several[v] = 1;
+  }
+  return several;
+}
+
 }  // namespace
 
 Topology build_topology(const Mesh& mesh) {
@@ -65,9 +116,8 @@ Topology build_topology(const Mesh& mesh) {
 TopologySummary summarize_topology(const Mesh& mesh, const Topology& topo) {
   TopologySummary s;
   const std::size_t nv = mesh.vertex_count(), nc = mesh.corner_count();
-  std::vector<std::uint32_t> corner_face(nc);
+  const std::vector<std::uint32_t> corner_face = corner_faces(mesh);
   for (std::uint32_t f = 0; f < mesh.face_count(); ++f) {
-    for (std::uint32_t c = mesh.face_offsets[f]; c < mesh.face_offsets[f + 1]; ++c) corner_face[c] = f;
     if (mesh.face_size(f) >= 3) ++s.faces;
   }
   std::vector<char> referenced(nv, 0);
@@ -75,43 +125,22 @@ TopologySummary summarize_topology(const Mesh& mesh, const Topology& topo) {
   s.referenced_vertices = static_cast<std::size_t>(std::count(referenced.begin(), referenced.end(), 1));
   s.edges = topo.edge_count();
 
-  UnionFind fans(nc);           // corners around a vertex joined across two-face edges
   UnionFind boundary(nv);       // vertices joined along boundary edges
   UnionFind components(nv);     // vertices joined by faces
   std::vector<char> on_boundary(nv, 0);
-  for (std::size_t e = 0; e < topo.edge_count(); ++e) {
-    const std::uint32_t val = topo.edge_valence(e);
-    const std::uint32_t* cs = &topo.edge_corner[topo.edge_corner_offsets[e]];
+  UnionFind fans = fans_of(mesh, topo, corner_face, [&](std::size_t e, std::uint32_t val, bool consistent) {
     if (val == 1) {
       ++s.boundary_edges;
       boundary.unite(topo.edges[e][0], topo.edges[e][1]);
       on_boundary[topo.edges[e][0]] = on_boundary[topo.edges[e][1]] = 1;
     } else if (val > 2) {
       ++s.non_manifold_edges;
-    } else {
-      const std::uint32_t c0 = cs[0], c1 = cs[1];
-      const std::uint32_t f0 = corner_face[c0], f1 = corner_face[c1];
-      const std::uint32_t n0 = next_corner(mesh, f0, c0), n1 = next_corner(mesh, f1, c1);
-      const bool same_direction = mesh.corner_vertex(c0) == mesh.corner_vertex(c1);
-      if (same_direction) {
-        ++s.inconsistent_edges;
-        fans.unite(c0, c1);
-        fans.unite(n0, n1);
-      } else {
-        fans.unite(c0, n1);
-        fans.unite(n0, c1);
-      }
+    } else if (!consistent) {
+      ++s.inconsistent_edges;
     }
-  }
+  });
   // A vertex is manifold when all its corners form one fan.
-  std::vector<std::uint32_t> fan_root(nv, kInvalidIndex);
-  std::vector<char> non_manifold(nv, 0);
-  for (std::uint32_t c = 0; c < nc; ++c) {
-    const std::uint32_t v = mesh.corner_vertex(c);
-    const std::uint32_t r = fans.find(c);
-    if (fan_root[v] == kInvalidIndex) fan_root[v] = r;
-    else if (fan_root[v] != r) non_manifold[v] = 1;
-  }
+  const std::vector<std::uint8_t> non_manifold = several_fans(mesh, fans);
   s.non_manifold_vertices = static_cast<std::size_t>(std::count(non_manifold.begin(), non_manifold.end(), 1));
 
   for (std::uint32_t f = 0; f < mesh.face_count(); ++f) {
@@ -126,6 +155,17 @@ TopologySummary summarize_topology(const Mesh& mesh, const Topology& topo) {
   s.euler_characteristic = static_cast<long long>(s.referenced_vertices) - static_cast<long long>(s.edges) +
                            static_cast<long long>(s.faces);
   return s;
+}
+
+std::vector<std::uint8_t> irregular_vertices(const Mesh& mesh, const Topology& topo) {
+  const std::vector<std::uint32_t> corner_face = corner_faces(mesh);
+  std::vector<std::uint32_t> bad_edges;
+  UnionFind fans = fans_of(mesh, topo, corner_face, [&](std::size_t e, std::uint32_t val, bool consistent) {
+    if (val > 2 || (val == 2 && !consistent)) bad_edges.push_back(static_cast<std::uint32_t>(e));
+  });
+  std::vector<std::uint8_t> irregular = several_fans(mesh, fans);
+  for (std::uint32_t e : bad_edges) irregular[topo.edges[e][0]] = irregular[topo.edges[e][1]] = 1;
+  return irregular;
 }
 
 }  // namespace lodforge

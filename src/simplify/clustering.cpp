@@ -39,6 +39,7 @@
 #include <Eigen/Dense>
 
 #include "engines.hpp"
+#include "lodforge/core/topology.hpp"
 
 namespace lodforge::collapse {
 namespace {
@@ -153,6 +154,57 @@ class KeyTable {
       std::size_t i = hash(s.key) & (n - 1);
       while (slots_[i].id != kInvalidIndex) i = (i + 1) & (n - 1);
       slots_[i] = s;
+    }
+  }
+  std::vector<Slot> slots_;
+  std::size_t size_ = 0;
+};
+
+// A face as clusters in canonical rotation (smallest first, winding kept) and its material.
+struct FaceKey {
+  std::uint32_t a, b, c, material;
+  bool operator==(const FaceKey&) const = default;
+};
+
+// Open-addressing set of face keys (no allocation per face: the build inserts one key per surviving triangle).
+class FaceSet {
+ public:
+  explicit FaceSet(std::size_t expected) : slots_(std::bit_ceil(std::max<std::size_t>(64, 2 * expected))) {}
+  // Whether `k` was new.
+  bool insert(const FaceKey& k) {
+    if (2 * (size_ + 1) > slots_.size()) rehash(2 * slots_.size());
+    for (std::size_t i = hash(k) & (slots_.size() - 1);; i = (i + 1) & (slots_.size() - 1)) {
+      Slot& s = slots_[i];
+      if (!s.used) {
+        s = {k, true};
+        ++size_;
+        return true;
+      }
+      if (s.key == k) return false;
+    }
+  }
+  bool contains(const FaceKey& k) const {
+    for (std::size_t i = hash(k) & (slots_.size() - 1);; i = (i + 1) & (slots_.size() - 1)) {
+      const Slot& s = slots_[i];
+      if (!s.used) return false;
+      if (s.key == k) return true;
+    }
+  }
+
+ private:
+  struct Slot {
+    FaceKey key{};
+    bool used = false;
+  };
+  static std::size_t hash(const FaceKey& k) {
+    return static_cast<std::size_t>(mix64((std::uint64_t{k.a} << 32 | k.b) ^ mix64(std::uint64_t{k.c} << 32 | k.material)));
+  }
+  void rehash(std::size_t n) {
+    std::vector<Slot> old = std::move(slots_);
+    slots_.assign(n, Slot{});
+    size_ = 0;
+    for (const Slot& s : old) {
+      if (s.used) insert(s.key);
     }
   }
   std::vector<Slot> slots_;
@@ -433,6 +485,7 @@ struct Built {
   Mesh mesh;
   std::size_t triangles = 0;
   double max_error2 = 0;  // largest cluster quadric error per area, normalised units squared
+  std::vector<std::uint32_t> output_vertex;  // stage builds: per input vertex, its output vertex (or invalid)
 };
 
 void blend_skin(const Mesh& m, const std::vector<std::uint32_t>& members, SkinInfluences& out) {
@@ -471,7 +524,8 @@ struct WedgeClass {
   double nearest = std::numeric_limits<double>::infinity();
 };
 
-Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options, Parallel& parallel) {
+Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options, Parallel& parallel,
+            bool stage = false) {
   const double resolution = grid.resolution;
   const Mesh& m = p.mesh;
   const std::size_t nv = m.vertex_count(), nw = m.wedge_count();
@@ -486,8 +540,30 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
   });
   std::vector<std::uint32_t> cluster(nv, kInvalidIndex);
   KeyTable table(std::min<std::size_t>(nv, static_cast<std::size_t>(4.0 * resolution * resolution) + 64));
-  for (std::size_t v = 0; v < nv; ++v) {
-    if (used[v]) cluster[v] = table.insert({cells[v], p.cls[v]});
+  if (stage) {
+    // A stage merges only vertices connected within their cell (by edges of the cell, the same class): two
+    // sheets crossing one cell stay apart instead of meeting in a non-manifold vertex.
+    std::vector<std::uint32_t> parent(nv);
+    for (std::uint32_t v = 0; v < nv; ++v) parent[v] = v;
+    auto find = [&](std::uint32_t x) {
+      while (parent[x] != x) x = parent[x] = parent[parent[x]];
+      return x;
+    };
+    for (std::size_t t = 0; t < p.triangles; ++t) {
+      for (int k = 0; k < 3; ++k) {
+        const std::uint32_t a = p.tri[3 * t + static_cast<std::size_t>(k)], b = p.tri[3 * t + static_cast<std::size_t>((k + 1) % 3)];
+        if (cells[a] != cells[b] || p.cls[a] != p.cls[b]) continue;
+        const std::uint32_t x = find(a), y = find(b);
+        if (x != y) parent[std::max(x, y)] = std::min(x, y);
+      }
+    }
+    for (std::uint32_t v = 0; v < nv; ++v) {
+      if (used[v]) cluster[v] = table.insert({cells[v], find(v)});
+    }
+  } else {
+    for (std::size_t v = 0; v < nv; ++v) {
+      if (used[v]) cluster[v] = table.insert({cells[v], p.cls[v]});
+    }
   }
   const std::size_t nc = table.size();
 
@@ -501,17 +577,16 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
     ++members[cluster[v]];
   }
   auto unit_pos = [&](std::uint32_t v) { return to_double(p.unit[v]); };
-  std::vector<Vec3d> normal(p.triangles);  // unit normal × area (0 for degenerate)
-  parallel.for_ranges(p.triangles, 8192, [&](std::size_t b, std::size_t e) {
-    for (std::size_t t = b; t < e; ++t) {
-      const Vec3d a = unit_pos(p.tri[3 * t]);
-      normal[t] = cross(unit_pos(p.tri[3 * t + 1]) - a, unit_pos(p.tri[3 * t + 2]) - a) * 0.5;
-    }
-  });
+  // Unit normal × area (0 for degenerate), computed where used: an array of them is 24 bytes a triangle.
+  auto normal_of = [&](std::size_t t) {
+    const Vec3d a = unit_pos(p.tri[3 * t]);
+    return cross(unit_pos(p.tri[3 * t + 1]) - a, unit_pos(p.tri[3 * t + 2]) - a) * 0.5;
+  };
   for (std::size_t t = 0; t < p.triangles; ++t) {
-    const double area = length(normal[t]);
+    const Vec3d normal = normal_of(t);
+    const double area = length(normal);
     if (!(area > 0.0) || !std::isfinite(area)) continue;
-    const Vec3d n = normal[t] * (1.0 / area);
+    const Vec3d n = normal * (1.0 / area);
     const double d = -dot(n, unit_pos(p.tri[3 * t]));
     Quadric f;
     f.add_plane(n, d, area);
@@ -523,7 +598,7 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
       const std::uint32_t a = p.tri[3 * t + k], b = p.tri[3 * t + (k + 1) % 3];
       const Vec3d e = unit_pos(b) - unit_pos(a);
       const double len2 = dot(e, e);
-      const Vec3d face_n = normal[t];
+      const Vec3d face_n = normal_of(t);
       Vec3d n = cross(e, face_n);
       const double nl = length(n);
       if (!(nl > 0.0) || !std::isfinite(nl)) continue;
@@ -593,16 +668,7 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
   }
   std::vector<std::uint32_t> kept;  // triangles kept, in order
   {
-    struct FaceKey {
-      std::uint32_t a, b, c, material;
-      bool operator==(const FaceKey&) const = default;
-    };
-    struct FaceHash {
-      std::size_t operator()(const FaceKey& k) const {
-        return static_cast<std::size_t>(mix64((std::uint64_t{k.a} << 32 | k.b) ^ mix64(std::uint64_t{k.c} << 32 | k.material)));
-      }
-    };
-    std::unordered_map<FaceKey, char, FaceHash> seen;
+    FaceSet seen(std::min(p.triangles, 4 * nc + 64));
     for (std::size_t t = 0; t < p.triangles; ++t) {
       std::uint32_t c0 = cluster[p.tri[3 * t]], c1 = cluster[p.tri[3 * t + 1]], c2 = cluster[p.tri[3 * t + 2]];
       if (c0 == c1 || c1 == c2 || c0 == c2) continue;
@@ -614,8 +680,22 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
         const std::uint32_t s = c0;
         c0 = c1, c1 = c2, c2 = s;
       }
-      if (!seen.emplace(FaceKey{c0, c1, c2, material_of(m, p.tri_face[t])}, 0).second) continue;
+      if (!seen.insert(FaceKey{c0, c1, c2, material_of(m, p.tri_face[t])})) continue;
       kept.push_back(static_cast<std::uint32_t>(t));
+    }
+    if (stage) {
+      // A face whose reverse was kept too is one of a back-to-back pair (a fold or a thin part within a
+      // cell): both go, as their shared edges would be non-manifold and lock their vertices in a later engine.
+      std::size_t n = 0;
+      for (std::uint32_t t : kept) {
+        std::uint32_t c0 = cluster[p.tri[3 * t]], c1 = cluster[p.tri[3 * t + 2]], c2 = cluster[p.tri[3 * t + 1]];
+        while (c0 > c1 || c0 > c2) {
+          const std::uint32_t x = c0;
+          c0 = c1, c1 = c2, c2 = x;
+        }
+        if (!seen.contains(FaceKey{c0, c1, c2, material_of(m, p.tri_face[t])})) kept[n++] = t;
+      }
+      kept.resize(n);
     }
   }
   out.triangles = kept.size();
@@ -727,6 +807,12 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
   const std::size_t ov = out_vertex_cluster.size(), ow = out_wedge_class.size();
   o.positions.resize(ov);
   for (std::size_t i = 0; i < ov; ++i) o.positions[i] = model[out_vertex_cluster[i]];
+  if (stage) {
+    out.output_vertex.assign(nv, kInvalidIndex);
+    for (std::size_t v = 0; v < nv; ++v) {
+      if (cluster[v] != kInvalidIndex) out.output_vertex[v] = vertex_id[cluster[v]];
+    }
+  }
   o.wedge_vertex.resize(ow);
   for (std::size_t i = 0; i < ow; ++i) o.wedge_vertex[i] = vertex_id[classes[out_wedge_class[i]].cluster];
 
@@ -859,6 +945,32 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
 
 // The output of a run that leaves the input as it is (target at or above the input, or nothing holds a
 // budget): its triangles with vertices and wedges unchanged.
+// A stage's output made a manifold where the input is one: the members of every output vertex where it is not
+// (several fans, an edge of three or more faces, an inconsistently oriented edge) are set apart, each its
+// own cluster at its own position, and the grid built again, until no such vertex has more than one member.
+// Terminates: a vertex alone is left as it is, and with every vertex alone the build is the input.
+Built make_manifold(Prepared& p, const Grid& grid, const SimplifyOptions& options, Parallel& parallel, Built b,
+                    std::size_t& rounds) {
+  for (;;) {
+    const std::vector<std::uint8_t> irregular = irregular_vertices(b.mesh, build_topology(b.mesh));
+    std::vector<std::uint32_t> members(b.mesh.vertex_count(), 0);
+    for (std::uint32_t o : b.output_vertex) {
+      if (o != kInvalidIndex) ++members[o];
+    }
+    bool changed = false;
+    for (std::size_t v = 0; v < p.cls.size(); ++v) {
+      const std::uint32_t o = b.output_vertex[v];
+      if (o == kInvalidIndex || !irregular[o] || members[o] < 2) continue;
+      p.cls[v] = kLockedClassBase + static_cast<std::uint32_t>(v);
+      changed = true;
+    }
+    if (!changed) return b;
+    p.any_class = true;
+    ++rounds;
+    b = build(p, grid, options, parallel, true);
+  }
+}
+
 SimplifyResult unchanged(const Mesh& tris) {
   SimplifyResult r;
   r.mesh = tris;
@@ -868,14 +980,14 @@ SimplifyResult unchanged(const Mesh& tris) {
 
 }  // namespace
 
-SimplifyResult run_cluster(const Mesh& mesh, const SimplifyOptions& options) {
+SimplifyResult run_cluster(const Mesh& mesh, const SimplifyOptions& options, bool stage) {
   const auto t0 = std::chrono::steady_clock::now();
   const FaceKindCounts kinds = count_face_kinds(mesh);
   Mesh triangulated_copy;
   if (kinds.quads != 0 || kinds.polygons != 0) triangulated_copy = triangulated(mesh);
   const Mesh& tris = kinds.quads != 0 || kinds.polygons != 0 ? triangulated_copy : mesh;
   Parallel parallel(options.threads);
-  const Prepared p = prepare(tris, options, parallel);
+  Prepared p = prepare(tris, options, parallel);
   const double diagonal = compute_bounds(tris).diagonal();
   const StopRule stop = stop_rule(options, tris.triangle_count(), diagonal);
   const std::size_t target = stop.target_triangles;
@@ -914,11 +1026,12 @@ SimplifyResult run_cluster(const Mesh& mesh, const SimplifyOptions& options) {
     double aim = static_cast<double>(target);
     // A first guess from a surface's count ~ 2 × cells: a unit square gives resolution² cells.
     double start = std::sqrt(aim / (kTrianglesPerArea * std::max(p.area, 1e-12)));
-    for (int round = 0; round <= kMaxCorrections; ++round) {
+    // A stage's count only has to be near its aim: no correction build.
+    for (int round = 0; round <= (stage ? 0 : kMaxCorrections); ++round) {
       const Probe found = search_grid(p, static_cast<std::size_t>(aim), start, parallel, probes, options.stop);
       const std::size_t raw = found.count;
-      Built b = build(p, found.grid, options, parallel);
-      const bool better = b.triangles <= target && (round == 0 || b.triangles > best.triangles);
+      Built b = build(p, found.grid, options, parallel, stage);
+        const bool better = b.triangles <= target && (round == 0 || b.triangles > best.triangles);
       if (round == 0 || better) {
         grid = found.grid;
         best = std::move(b);
@@ -930,6 +1043,9 @@ SimplifyResult run_cluster(const Mesh& mesh, const SimplifyOptions& options) {
       start = found.grid.resolution * std::sqrt(next / aim);
       aim = std::min(next, static_cast<double>(p.triangles));
     }
+  }
+  if (stage && best.triangles > 0 && !options.stop.requested()) {
+    best = make_manifold(p, grid, options, parallel, std::move(best), probes);
   }
   if (options.stop.requested() && best.triangles == 0) {  // stopped before any LOD was built: the input
     SimplifyResult r = unchanged(tris);

@@ -35,8 +35,12 @@ SimplifyResult run_multiple_choice(const Mesh& triangles, const SimplifyOptions&
                                    const CollapsePolicies& policies = {}, std::vector<CollapseRecord>* log = nullptr,
                                    const GuardReference* guard = nullptr);
 // Vertex clustering (clustering.cpp): any face kinds (polygons are triangulated first), no collapse log; an
-// error budget is held by measuring the output per grid resolution. Fills the whole result.
-SimplifyResult run_cluster(const Mesh& mesh, const SimplifyOptions& options);
+// error budget is held by measuring the output per grid resolution. Fills the whole result. `stage`: the
+// output feeds another engine (the tiled path's cluster stage), which locks the vertices where a mesh is not
+// a manifold: vertices merge only where they are connected within their cell, back-to-back face pairs are
+// dropped, and the clusters of vertices that are still not manifold are taken apart again (each member its
+// own vertex) until none is left; the count is not corrected for the faces the build drops or splits add.
+SimplifyResult run_cluster(const Mesh& mesh, const SimplifyOptions& options, bool stage = false);
 
 // simplify() with verify_budget and an error budget: runs `engine` with a log, measures its output against the
 // reference and backs off along the log where it exceeds the budget (budget.cpp).

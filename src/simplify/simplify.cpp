@@ -70,6 +70,10 @@ std::vector<std::string> SimplifyOptions::validate() const {
   if (!(symmetry_weight >= 0.0 && std::isfinite(symmetry_weight))) {
     problems.push_back("symmetry_weight must be finite and >= 0, got " + std::to_string(symmetry_weight));
   }
+  if (!(cluster_stage_factor >= 1.0) || !std::isfinite(cluster_stage_factor)) {
+    problems.push_back("cluster_stage_factor must be a finite number of at least 1, got " +
+                       std::to_string(cluster_stage_factor));
+  }
   if (tile_triangles < 100) {
     problems.push_back("tile_triangles must be at least 100, got " + std::to_string(tile_triangles));
   }

@@ -303,11 +303,7 @@ StreamedRun simplify_streamed(const std::filesystem::path& path, const SimplifyO
     finish.max_error_rel = -1.0;
   }
   if (memory_limit > 0) {
-    const MemoryPlan plan = plan_memory(stitched, finish, memory_limit, concurrency);
-    if (plan.force_tiling) {
-      finish.tiling = TilingMode::on;
-      finish.tile_triangles = plan.tile_triangles;
-    }
+    plan_memory(stitched, finish, memory_limit, concurrency).apply(finish);
   }
   SimplifyResult r = simplify_maybe_tiled(stitched, finish);
   r.triangles_before = triangles;

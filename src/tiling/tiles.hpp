@@ -47,6 +47,9 @@ unsigned tile_threads(const SimplifyOptions& options, std::size_t tiles);
 // The first pass's target: kOversample x the global target where that is below half of the `n` triangles,
 // so that the final untiled run spends the last collapses where the whole mesh's error is least.
 std::size_t first_pass_target(std::size_t target, std::size_t n);
+// The cluster stage's target for a mesh of `n` triangles going to `target` (SimplifyOptions::cluster_stage);
+// 0: no cluster stage.
+std::size_t cluster_stage_target(const SimplifyOptions& options, std::size_t n, std::size_t target);
 // A tile's share of `pass_target` by its `tile_triangles` of the pass's `pass_triangles`, rounded to nearest.
 std::size_t tile_share(std::size_t pass_target, std::size_t tile_triangles, std::size_t pass_triangles);
 // Folds one run's statistics into a total (largest error and seam stage, summed counts).

@@ -173,6 +173,20 @@ std::size_t first_pass_target(std::size_t target, std::size_t n) {
   return oversampled < n / 2 ? oversampled : target;
 }
 
+std::size_t cluster_stage_target(const SimplifyOptions& options, std::size_t n, std::size_t target) {
+  // Clustering moves every vertex (a conservative LOD would not nest), renumbers them (locked ones would be
+  // lost) and has no error budget of its own to share.
+  if (options.cluster_stage == TilingMode::off || options.conservative != Conservative::none ||
+      !options.locked_vertices.empty() || options.max_error_abs >= 0.0 || options.max_error_rel >= 0.0) {
+    return 0;
+  }
+  const double wanted = options.cluster_stage_factor * static_cast<double>(target);
+  if (!(wanted >= static_cast<double>(target)) || !(wanted < static_cast<double>(n))) return 0;
+  const auto at = static_cast<std::size_t>(wanted);
+  if (options.cluster_stage == TilingMode::automatic && (n < kAutoClusterTriangles || at > n / 4)) return 0;
+  return at;
+}
+
 std::size_t tile_share(std::size_t pass_target, std::size_t tile_triangles, std::size_t pass_triangles) {
   const std::size_t total = std::max<std::size_t>(pass_triangles, 1);
   return std::max<std::size_t>(1, (pass_target * tile_triangles + total / 2) / total);
@@ -433,6 +447,13 @@ std::size_t mesh_bytes(const Mesh& m) {
   return n;
 }
 
+void MemoryPlan::apply(SimplifyOptions& options) const {
+  if (!force_tiling) return;
+  options.tiling = TilingMode::on;
+  options.tile_triangles = tile_triangles;
+  options.cluster_stage = TilingMode::off;
+}
+
 MemoryPlan plan_memory(const Mesh& mesh, const SimplifyOptions& options, std::size_t limit, unsigned workers) {
   MemoryPlan p;
   const std::size_t n = mesh.triangle_count();
@@ -483,7 +504,23 @@ SimplifyResult simplify_tiled(const Mesh& triangles, const SimplifyOptions& opti
   const Mesh* mesh = &triangles;
   double collapse_ms = 0;
   bool stopped = false, finished = false, over_budget = false;
-  for (int pass = 0; pass < kMaxPasses && !finished; ++pass) {
+  // The cluster stage: the whole mesh vertex-clustered to a few times the target in a few linear passes; the
+  // edge engine's passes below make the LOD from that.
+  if (const std::size_t cluster_target = detail::cluster_stage_target(options, before, target); cluster_target > 0) {
+    const auto t0 = std::chrono::steady_clock::now();
+    SimplifyOptions co = base;
+    co.engine = Engine::cluster;
+    co.target_triangles = cluster_target;
+    SimplifyResult r = collapse::run_cluster(triangles, co, true);
+    total.cluster_stage_ms = collapse::elapsed_ms(t0);
+    total.timings.setup_ms += total.cluster_stage_ms;
+    total.cluster_stage_triangles = r.triangles_after;
+    stopped = r.stop_reason == StopReason::stopped;
+    current = std::move(r.mesh);
+    mesh = &current;
+    locked.assign(current.vertex_count(), 0);  // the stage runs only without locked vertices
+  }
+  for (int pass = 0; pass < kMaxPasses && !finished && !stopped; ++pass) {
     const std::size_t n = mesh->face_count();
     if (n <= target) break;
     const auto t0 = std::chrono::steady_clock::now();

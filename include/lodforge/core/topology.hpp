@@ -45,4 +45,9 @@ struct TopologySummary {
 
 TopologySummary summarize_topology(const Mesh& mesh, const Topology& topo);
 
+// Per vertex, 1 where the mesh is not a manifold there: its faces form several fans (the summary's
+// non-manifold vertices), or it lies on an edge with more than two faces or on a two-face edge both faces
+// traverse in the same direction.
+std::vector<std::uint8_t> irregular_vertices(const Mesh& mesh, const Topology& topo);
+
 }  // namespace lodforge

@@ -152,6 +152,12 @@ struct SimplifyOptions {
   // Read by simplify_maybe_tiled() only (tiling/tiling.hpp); simplify() runs untiled whatever they say.
   TilingMode tiling = TilingMode::automatic;
   std::size_t tile_triangles = 200'000;  // triangles per tile on the tiled path, at least 100
+  // The tiled path's cluster stage: the whole mesh vertex-clustered to cluster_stage_factor × the target
+  // first (engine cluster), the tiled edge-collapse passes finishing from there; never with locked vertices,
+  // an error budget or a conservative mode. automatic: from tiling::kAutoClusterTriangles triangles, where
+  // that count is at most a quarter of the input; on: wherever it is below the input's.
+  TilingMode cluster_stage = TilingMode::automatic;
+  double cluster_stage_factor = 8.0;
 
   // --- attributes, seams, skinning, painted priority (edge_collapse.hpp has the vertex kinds and rules) ---
   AttributeWeights attribute_weights{};
@@ -326,6 +332,9 @@ struct SimplifyResult {
   // mesh) and tiles simplified over all of them; 0 and 0 when the mesh ran untiled.
   std::size_t tiling_passes = 0;
   std::size_t tile_runs = 0;
+  // The tiled path's cluster stage: its output (0: none was made) and its time (also in timings.setup_ms).
+  std::size_t cluster_stage_triangles = 0;
+  double cluster_stage_ms = 0;
   // The last seam stage the engine used (strict: none was needed or allowed).
   SeamStage seam_stage = SeamStage::strict;
   // When the target was not reached: what held the rest, most refused candidates first, each one of

@@ -28,6 +28,8 @@ namespace lodforge::tiling {
 
 // Triangles from which TilingMode::automatic tiles a mesh.
 inline constexpr std::size_t kAutoThresholdTriangles = 1'000'000;
+// Triangles from which the tiled path clusters first (SimplifyOptions::cluster_stage automatic).
+inline constexpr std::size_t kAutoClusterTriangles = 4'000'000;
 // Passes at most (cut, simplify, stitch); the last one runs untiled.
 inline constexpr int kMaxPasses = 8;
 // The first tiled pass takes the mesh to this many times the target; the rest is made by an untiled run once
@@ -89,8 +91,11 @@ struct MemoryPlan {
   std::size_t untiled_bytes = 0;  // estimated peak of one engine run, the input included
   std::size_t tiled_bytes = 0;    // estimated peak of the tiled path with `tile_triangles`, the input included
   std::size_t tile_triangles = 0;
-  bool force_tiling = false;  // run tiled with `tile_triangles`
+  bool force_tiling = false;  // run tiled with `tile_triangles` (and without the cluster stage)
   bool fits = true;
+  // Where force_tiling is set, makes `options` run as planned: tiled, in tiles of `tile_triangles`, without
+  // the cluster stage (its arrays over the whole mesh are not in the tiled estimate).
+  void apply(SimplifyOptions& options) const;
 };
 MemoryPlan plan_memory(const Mesh& mesh, const SimplifyOptions& options, std::size_t limit, unsigned workers);
 

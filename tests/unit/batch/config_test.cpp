@@ -22,7 +22,8 @@ constexpr const char* kOptionKeys =
     "engine, border, border_weight, regularization_weight, max_flip_angle_deg, seed, multiple_choice_k, max_batch, "
     "attribute_weights, seams, permissive, priority_channel, attribute_placement, priority_lock, "
     "skin_weight_threshold, "
-    "skin_max_distance, tiling, tile_triangles, symmetry_weight, conservative, max_volume_growth";
+    "skin_max_distance, tiling, tile_triangles, cluster_stage, cluster_stage_factor, symmetry_weight, conservative, "
+    "max_volume_growth";
 // `defaults` and class options also take the per-asset options.
 const std::string kClassOptionKeys = std::string(kOptionKeys) + ", symmetry_plane";
 
@@ -889,6 +890,16 @@ TEST(BatchConfigErrors, Tiling) {
             expected("defaults.tiling: must be one of \"auto\", \"on\", \"off\", got string \"always\""));
   EXPECT_EQ(error_with("/classes/0/options/tile_triangles", 99),
             expected("classes[0].options.tile_triangles: must be >= 100"));
+  EXPECT_NE(error_with("/defaults/cluster_stage", "sometimes").find("defaults.cluster_stage: must be one of"),
+            std::string::npos);
+  EXPECT_NE(error_with("/defaults/cluster_stage_factor", 0.5).find("defaults.cluster_stage_factor: must be"),
+            std::string::npos);
+  Json doc = with_classes(R"([{"name": "scans", "match": ["**"], "options": {"cluster_stage": "off",
+     "cluster_stage_factor": 12}, "lods": [{"ratio": 0.1}, {"ratio": 0.01, "cluster_stage": "on"}]}])");
+  const BatchConfig c = parse_config(doc);
+  EXPECT_EQ(c.classes[0].lods[0].options.simplify.cluster_stage, TilingMode::off);
+  EXPECT_EQ(c.classes[0].lods[1].options.simplify.cluster_stage, TilingMode::on);
+  EXPECT_EQ(c.classes[0].lods[1].options.simplify.cluster_stage_factor, 12.0);
 }
 
 // Tiling defaults to auto (200000 triangles per tile); a class and a LOD override it, and the effective config

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -199,6 +200,32 @@ TEST(Mesh, UvSphereIsClosedAndOutward) {
   }
   EXPECT_GT(volume6, 0.0);
   EXPECT_EQ(summarize_topology(m, build_topology(m)).euler_characteristic, 2);
+}
+
+TEST(Topology, IrregularVerticesAreWhereTheMeshIsNotAManifold) {
+  const Mesh clean = testing::make_grid(3, 3, false);
+  const std::vector<std::uint8_t> none = irregular_vertices(clean, build_topology(clean));
+  EXPECT_EQ(std::count(none.begin(), none.end(), 1), 0);
+
+  Mesh m;  // a bowtie at vertex 0, and a fin: edge 5-6 with three faces
+  for (int i = 0; i < 10; ++i) m.add_vertex_with_wedge({{float(i), float(i * i % 5), 0.0f}});
+  m.add_face({0, 1, 2});
+  m.add_face({0, 3, 4});
+  m.add_face({5, 6, 7});
+  m.add_face({6, 5, 8});
+  m.add_face({5, 6, 9});
+  const std::vector<std::uint8_t> flags = irregular_vertices(m, build_topology(m));
+  const std::vector<std::uint8_t> expected = {1, 0, 0, 0, 0, 1, 1, 0, 0, 0};
+  EXPECT_EQ(flags, expected);
+  const TopologySummary s = summarize_topology(m, build_topology(m));
+  EXPECT_EQ(s.non_manifold_edges, 1u);
+
+  Mesh flipped;  // two faces crossing their shared edge in the same direction
+  for (int i = 0; i < 4; ++i) flipped.add_vertex_with_wedge({{float(i % 2), float(i / 2), 0.0f}});
+  flipped.add_face({0, 1, 2});
+  flipped.add_face({0, 1, 3});
+  const std::vector<std::uint8_t> inconsistent = irregular_vertices(flipped, build_topology(flipped));
+  EXPECT_EQ(inconsistent, (std::vector<std::uint8_t>{1, 1, 0, 0}));
 }
 
 }  // namespace
