@@ -72,6 +72,8 @@ constexpr double kBudgetResolutionRatio = 1.02;
 constexpr int kMaxBudgetMeasurements = 16;
 // Triangles per parallel chunk of a probe (fixed, so sums do not depend on threads).
 constexpr std::size_t kChunk = 1 << 16;
+// Rounds of a stage's manifold repair at most (one was needed on the benchmark terrains).
+constexpr int kMaxManifoldRounds = 8;
 // Influences kept per vertex after blending skin weights.
 constexpr int kKeptInfluences = 4;
 
@@ -948,10 +950,12 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
 // A stage's output made a manifold where the input is one: the members of every output vertex where it is not
 // (several fans, an edge of three or more faces, an inconsistently oriented edge) are set apart, each its
 // own cluster at its own position, and the grid built again, until no such vertex has more than one member.
-// Terminates: a vertex alone is left as it is, and with every vertex alone the build is the input.
+// Each round sets apart at least one more vertex, and with every vertex alone the build is the input; on
+// inputs that are far from manifold themselves the rounds stop after kMaxManifoldRounds, and the engine after
+// the stage locks what is left, as it would in the input.
 Built make_manifold(Prepared& p, const Grid& grid, const SimplifyOptions& options, Parallel& parallel, Built b,
                     std::size_t& rounds) {
-  for (;;) {
+  for (int round = 0; round < kMaxManifoldRounds && !options.stop.requested(); ++round) {
     const std::vector<std::uint8_t> irregular = irregular_vertices(b.mesh, build_topology(b.mesh));
     std::vector<std::uint32_t> members(b.mesh.vertex_count(), 0);
     for (std::uint32_t o : b.output_vertex) {
@@ -969,6 +973,7 @@ Built make_manifold(Prepared& p, const Grid& grid, const SimplifyOptions& option
     ++rounds;
     b = build(p, grid, options, parallel, true);
   }
+  return b;
 }
 
 SimplifyResult unchanged(const Mesh& tris) {
