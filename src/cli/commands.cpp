@@ -423,7 +423,7 @@ void register_simplify(CLI::App& app) {
       ->default_val(a->opt.tile_triangles);
   cmd->add_option("--cluster-stage", a->cluster_stage,
                   "auto | on | off: on the tiled path, vertex-cluster the whole mesh to --cluster-stage-factor times "
-                  "the target first and let the edge engine finish from the clusters' source planes (auto: from "
+                  "the target first and let the tiled edge-collapse passes finish from there (auto: from "
                   "4,000,000 triangles, where that is at most a quarter of the input, no locked vertices, no "
                   "conservative mode; docs/tiling.md)")
       ->default_val(a->cluster_stage)
