@@ -526,21 +526,32 @@ struct WedgeClass {
   double nearest = std::numeric_limits<double>::infinity();
 };
 
-Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options, Parallel& parallel,
-            bool stage = false) {
-  const double resolution = grid.resolution;
-  const Mesh& m = p.mesh;
-  const std::size_t nv = m.vertex_count(), nw = m.wedge_count();
-  Built out;
+// A clustering on its way to a Built: the steps of build() fill it in order (clusters, placement, faces,
+// output); a stage repairs it between the faces and the output.
+struct Clustering {
+  std::vector<std::uint64_t> cells;       // per input vertex: its grid cell
+  std::vector<std::uint32_t> cluster;     // per input vertex: its cluster (invalid where no triangle uses it)
+  std::size_t count = 0;                  // clusters
+  std::vector<std::uint32_t> any_member;  // per cluster: its lowest vertex
+  std::vector<Vec3d> rep;                 // per cluster: its vertex, normalised units
+  std::vector<double> err2;               // per cluster: quadric error per area at `rep`
+  std::vector<Vec3f> model;               // per cluster: its vertex in model units
+  std::vector<std::uint32_t> kept;        // triangles kept, in order
+};
 
-  // Clusters, numbered in vertex order (used vertices only).
+// Clusters, numbered in vertex order (used vertices only).
+void assign_clusters(const Prepared& p, const Grid& grid, Parallel& parallel, bool stage, Clustering& cl) {
+  const double resolution = grid.resolution;
+  const std::size_t nv = p.mesh.vertex_count();
   std::vector<char> used(nv, 0);
   for (std::uint32_t v : p.tri) used[v] = 1;
-  std::vector<std::uint64_t> cells(nv);
+  std::vector<std::uint64_t>& cells = cl.cells;
+  cells.resize(nv);
   parallel.for_ranges(nv, 8192, [&](std::size_t b, std::size_t e) {
     for (std::size_t v = b; v < e; ++v) cells[v] = cell_of(p.unit[v], grid);
   });
-  std::vector<std::uint32_t> cluster(nv, kInvalidIndex);
+  std::vector<std::uint32_t>& cluster = cl.cluster;
+  cluster.assign(nv, kInvalidIndex);
   KeyTable table(std::min<std::size_t>(nv, static_cast<std::size_t>(4.0 * resolution * resolution) + 64));
   if (stage) {
     // A stage merges only vertices connected within their cell (by edges of the cell, the same class): two
@@ -567,9 +578,17 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
       if (used[v]) cluster[v] = table.insert({cells[v], p.cls[v]});
     }
   }
-  const std::size_t nc = table.size();
+  cl.count = table.size();
+}
 
-  // Quadrics (triangle order, then boundary planes) and member means.
+// Each cluster's vertex: quadrics summed in triangle order (then boundary planes), solved about the members'
+// mean, truncated, clamped to the cell; locked vertices keep their exact position.
+void place(const Prepared& p, const Grid& grid, const SimplifyOptions& options, Parallel& parallel, Clustering& cl) {
+  const double resolution = grid.resolution;
+  const Mesh& m = p.mesh;
+  const std::size_t nv = m.vertex_count(), nc = cl.count;
+  const std::vector<std::uint32_t>& cluster = cl.cluster;
+  const std::vector<std::uint64_t>& cells = cl.cells;
   std::vector<Quadric> q(nc);
   std::vector<Vec3d> sum(nc, Vec3d{});
   std::vector<std::uint32_t> members(nc, 0);
@@ -613,9 +632,12 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
   }
 
   // Representatives: the quadric's minimiser about the members' mean, truncated, clamped to the cell.
-  std::vector<Vec3d> rep(nc);
-  std::vector<double> err2(nc, 0.0);
-  std::vector<std::uint32_t> any_member(nc, kInvalidIndex);
+  std::vector<Vec3d>& rep = cl.rep;
+  std::vector<double>& err2 = cl.err2;
+  std::vector<std::uint32_t>& any_member = cl.any_member;
+  rep.assign(nc, Vec3d{});
+  err2.assign(nc, 0.0);
+  any_member.assign(nc, kInvalidIndex);
   for (std::size_t v = nv; v-- > 0;) {
     if (cluster[v] != kInvalidIndex) any_member[cluster[v]] = static_cast<std::uint32_t>(v);
   }
@@ -661,17 +683,27 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
     }
   });
 
-  // Faces: corners in three clusters, no zero area, no repeat of an earlier face (same clusters in the same
-  // cyclic order, same material).
-  std::vector<Vec3f> model(nc);
+  cl.model.resize(nc);
   for (std::size_t c = 0; c < nc; ++c) {
     const std::uint32_t v0 = any_member[c];
-    model[c] = p.cls[v0] >= kLockedClassBase ? m.positions[v0] : to_float(p.origin + rep[c] * p.extent);
+    cl.model[c] = p.cls[v0] >= kLockedClassBase ? m.positions[v0] : to_float(p.origin + rep[c] * p.extent);
   }
-  std::vector<std::uint32_t> kept;  // triangles kept, in order
+}
+
+// Faces: corners in three clusters, no zero area, no repeat of an earlier face (same clusters in the same
+// cyclic order, same material); in a stage, no back-to-back pair either. `triangles` lists the candidates in
+// order (all triangles where empty); the kept ones are appended to `kept`.
+void select_faces(const Prepared& p, const Clustering& cl, bool stage, const std::vector<std::uint32_t>* triangles,
+                  std::vector<std::uint32_t>& kept) {
+  const Mesh& m = p.mesh;
+  const std::vector<std::uint32_t>& cluster = cl.cluster;
+  const std::vector<Vec3f>& model = cl.model;
+  const std::size_t candidates = triangles != nullptr ? triangles->size() : p.triangles;
+  const std::size_t first = kept.size();
   {
-    FaceSet seen(std::min(p.triangles, 4 * nc + 64));
-    for (std::size_t t = 0; t < p.triangles; ++t) {
+    FaceSet seen(std::min(candidates, 4 * cl.count + 64));
+    for (std::size_t i = 0; i < candidates; ++i) {
+      const std::size_t t = triangles != nullptr ? (*triangles)[i] : i;
       std::uint32_t c0 = cluster[p.tri[3 * t]], c1 = cluster[p.tri[3 * t + 1]], c2 = cluster[p.tri[3 * t + 2]];
       if (c0 == c1 || c1 == c2 || c0 == c2) continue;
       const Vec3d a = to_double(model[c0]);
@@ -688,8 +720,9 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
     if (stage) {
       // A face whose reverse was kept too is one of a back-to-back pair (a fold or a thin part within a
       // cell): both go, as their shared edges would be non-manifold and lock their vertices in a later engine.
-      std::size_t n = 0;
-      for (std::uint32_t t : kept) {
+      std::size_t n = first;
+      for (std::size_t i = first; i < kept.size(); ++i) {
+        const std::uint32_t t = kept[i];
         std::uint32_t c0 = cluster[p.tri[3 * t]], c1 = cluster[p.tri[3 * t + 2]], c2 = cluster[p.tri[3 * t + 1]];
         while (c0 > c1 || c0 > c2) {
           const std::uint32_t x = c0;
@@ -700,6 +733,18 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
       kept.resize(n);
     }
   }
+}
+
+// The output mesh of a clustering: render vertices, numbering, per-vertex and per-wedge data.
+Built emit(const Prepared& p, const SimplifyOptions& options, Parallel& parallel, const Clustering& cl, bool stage) {
+  const Mesh& m = p.mesh;
+  const std::size_t nv = m.vertex_count(), nw = m.wedge_count(), nc = cl.count;
+  const std::vector<std::uint32_t>& cluster = cl.cluster;
+  const std::vector<std::uint32_t>& kept = cl.kept;
+  const std::vector<Vec3d>& rep = cl.rep;
+  const std::vector<double>& err2 = cl.err2;
+  const std::vector<Vec3f>& model = cl.model;
+  Built out;
   out.triangles = kept.size();
   for (std::uint32_t t : kept) {
     for (int k = 0; k < 3; ++k) out.max_error2 = std::max(out.max_error2, err2[cluster[p.tri[3 * t + static_cast<std::size_t>(k)]]]);
@@ -945,37 +990,92 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
   return out;
 }
 
-// The output of a run that leaves the input as it is (target at or above the input, or nothing holds a
-// budget): its triangles with vertices and wedges unchanged.
-// A stage's output made a manifold where the input is one: the members of every output vertex where it is not
-// (several fans, an edge of three or more faces, an inconsistently oriented edge) are set apart, each its
-// own cluster at its own position, and the grid built again, until no such vertex has more than one member.
-// Each round sets apart at least one more vertex, and with every vertex alone the build is the input; on
-// inputs that are far from manifold themselves the rounds stop after kMaxManifoldRounds, and the engine after
-// the stage locks what is left, as it would in the input.
-Built make_manifold(Prepared& p, const Grid& grid, const SimplifyOptions& options, Parallel& parallel, Built b,
-                    std::size_t& rounds) {
-  for (int round = 0; round < kMaxManifoldRounds && !options.stop.requested(); ++round) {
-    const std::vector<std::uint8_t> irregular = irregular_vertices(b.mesh, build_topology(b.mesh));
-    std::vector<std::uint32_t> members(b.mesh.vertex_count(), 0);
-    for (std::uint32_t o : b.output_vertex) {
-      if (o != kInvalidIndex) ++members[o];
-    }
-    bool changed = false;
-    for (std::size_t v = 0; v < p.cls.size(); ++v) {
-      const std::uint32_t o = b.output_vertex[v];
-      if (o == kInvalidIndex || !irregular[o] || members[o] < 2) continue;
-      p.cls[v] = kLockedClassBase + static_cast<std::uint32_t>(v);
-      changed = true;
-    }
-    if (!changed) return b;
-    p.any_class = true;
-    ++rounds;
-    b = build(p, grid, options, parallel, true);
-  }
-  return b;
+Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options, Parallel& parallel) {
+  Clustering cl;
+  assign_clusters(p, grid, parallel, false, cl);
+  place(p, grid, options, parallel, cl);
+  select_faces(p, cl, false, nullptr, cl.kept);
+  return emit(p, options, parallel, cl, false);
 }
 
+// Clusters whose output vertex is not a manifold one (several fans, an edge of three or more faces, an
+// inconsistently oriented edge), judged on the kept faces with clusters as vertices.
+std::vector<std::uint8_t> irregular_clusters(const Clustering& cl, const Prepared& p) {
+  Mesh faces;
+  faces.positions.resize(cl.count);
+  faces.wedge_vertex.resize(cl.count);
+  for (std::uint32_t c = 0; c < cl.count; ++c) faces.wedge_vertex[c] = c;
+  faces.corner_wedge.reserve(3 * cl.kept.size());
+  faces.face_offsets.reserve(cl.kept.size() + 1);
+  faces.face_offsets.push_back(0);
+  for (std::uint32_t t : cl.kept) {
+    for (int k = 0; k < 3; ++k) faces.corner_wedge.push_back(cl.cluster[p.tri[3 * t + static_cast<std::size_t>(k)]]);
+    faces.face_offsets.push_back(static_cast<std::uint32_t>(faces.corner_wedge.size()));
+  }
+  return irregular_vertices(faces, build_topology(faces));
+}
+
+// A stage's build, made a manifold where the input is one: the members of every cluster whose vertex is not
+// are set apart, each its own cluster at its own exact position (its class locked), and the faces around
+// them selected again, until no such cluster has more than one member. The clusters and faces elsewhere do
+// not change (a face's fate depends only on its own clusters), so this is the same as building the grid
+// again with those vertices locked, without the full passes. Each round sets apart at least one more vertex;
+// on inputs that are far from manifold themselves the rounds stop after kMaxManifoldRounds, and the engine
+// after the stage locks what is left, as it would in the input.
+Built build_stage(Prepared& p, const Grid& grid, const SimplifyOptions& options, Parallel& parallel,
+                  std::size_t& rounds) {
+  const Mesh& m = p.mesh;
+  Clustering cl;
+  assign_clusters(p, grid, parallel, true, cl);
+  place(p, grid, options, parallel, cl);
+  select_faces(p, cl, true, nullptr, cl.kept);
+  for (int round = 0; round < kMaxManifoldRounds && !options.stop.requested() && !cl.kept.empty(); ++round) {
+    const std::vector<std::uint8_t> irregular = irregular_clusters(cl, p);
+    std::vector<std::uint32_t> members(cl.count, 0);
+    for (std::uint32_t c : cl.cluster) {
+      if (c != kInvalidIndex) ++members[c];
+    }
+    const auto first_new = static_cast<std::uint32_t>(cl.count);
+    for (std::size_t v = 0; v < cl.cluster.size(); ++v) {
+      const std::uint32_t c = cl.cluster[v];
+      if (c == kInvalidIndex || c >= first_new || !irregular[c] || members[c] < 2) continue;
+      p.cls[v] = kLockedClassBase + static_cast<std::uint32_t>(v);
+      cl.cluster[v] = static_cast<std::uint32_t>(cl.count++);
+      cl.any_member.push_back(static_cast<std::uint32_t>(v));
+      cl.rep.push_back(to_double(p.unit[v]));
+      cl.err2.push_back(0.0);
+      cl.model.push_back(m.positions[v]);
+    }
+    if (cl.count == first_new) break;
+    p.any_class = true;
+    ++rounds;
+    // Faces with a corner set apart are selected again; their keys hold a new cluster, so they cannot repeat
+    // (or mirror) a face elsewhere.
+    auto touched = [&](std::size_t t) {
+      return cl.cluster[p.tri[3 * t]] >= first_new || cl.cluster[p.tri[3 * t + 1]] >= first_new ||
+             cl.cluster[p.tri[3 * t + 2]] >= first_new;
+    };
+    std::vector<std::uint32_t> again, kept_again;
+    for (std::size_t t = 0; t < p.triangles; ++t) {
+      if (touched(t)) again.push_back(static_cast<std::uint32_t>(t));
+    }
+    select_faces(p, cl, true, &again, kept_again);
+    std::vector<std::uint32_t> kept;
+    kept.reserve(cl.kept.size() + kept_again.size());
+    std::size_t j = 0;
+    for (std::uint32_t t : cl.kept) {
+      if (touched(t)) continue;
+      for (; j < kept_again.size() && kept_again[j] < t; ++j) kept.push_back(kept_again[j]);
+      kept.push_back(t);
+    }
+    kept.insert(kept.end(), kept_again.begin() + static_cast<std::ptrdiff_t>(j), kept_again.end());
+    cl.kept = std::move(kept);
+  }
+  return emit(p, options, parallel, cl, true);
+}
+
+// The output of a run that leaves the input as it is (target at or above the input, or nothing holds a
+// budget): its triangles with vertices and wedges unchanged.
 SimplifyResult unchanged(const Mesh& tris) {
   SimplifyResult r;
   r.mesh = tris;
@@ -1035,7 +1135,7 @@ SimplifyResult run_cluster(const Mesh& mesh, const SimplifyOptions& options, boo
     for (int round = 0; round <= (stage ? 0 : kMaxCorrections); ++round) {
       const Probe found = search_grid(p, static_cast<std::size_t>(aim), start, parallel, probes, options.stop);
       const std::size_t raw = found.count;
-      Built b = build(p, found.grid, options, parallel, stage);
+      Built b = stage ? build_stage(p, found.grid, options, parallel, probes) : build(p, found.grid, options, parallel);
         const bool better = b.triangles <= target && (round == 0 || b.triangles > best.triangles);
       if (round == 0 || better) {
         grid = found.grid;
@@ -1048,9 +1148,6 @@ SimplifyResult run_cluster(const Mesh& mesh, const SimplifyOptions& options, boo
       start = found.grid.resolution * std::sqrt(next / aim);
       aim = std::min(next, static_cast<double>(p.triangles));
     }
-  }
-  if (stage && best.triangles > 0 && !options.stop.requested()) {
-    best = make_manifold(p, grid, options, parallel, std::move(best), probes);
   }
   if (options.stop.requested() && best.triangles == 0) {  // stopped before any LOD was built: the input
     SimplifyResult r = unchanged(tris);
