@@ -23,6 +23,7 @@
 // Every parallel step writes per-item results or integer sums, so the output is the same for any thread count.
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <bit>
 #include <chrono>
 #include <cmath>
@@ -213,6 +214,36 @@ class FaceSet {
   std::size_t size_ = 0;
 };
 
+// Union-find over vertex ids shared by threads: a root links only to a lower root (by compare-and-swap), so
+// every parent is at most its child and the root of a set is its lowest member, whatever the order of the
+// unions. Finds halve paths as they go (any ancestor is a valid parent).
+class DisjointSets {
+ public:
+  explicit DisjointSets(std::vector<std::uint32_t>& parent) : parent_(parent) {}
+  std::uint32_t find(std::uint32_t x) const {
+    for (;;) {
+      const std::uint32_t up = load(x);
+      if (up == x) return x;
+      const std::uint32_t above = load(up);
+      if (above != up) std::atomic_ref<std::uint32_t>(parent_[x]).store(above, std::memory_order_relaxed);
+      x = above;
+    }
+  }
+  void unite(std::uint32_t a, std::uint32_t b) const {
+    for (;;) {
+      a = find(a), b = find(b);
+      if (a == b) return;
+      if (a < b) std::swap(a, b);
+      std::uint32_t expected = a;  // still a root?
+      if (std::atomic_ref<std::uint32_t>(parent_[a]).compare_exchange_strong(expected, b, std::memory_order_relaxed)) return;
+    }
+  }
+
+ private:
+  std::uint32_t load(std::uint32_t x) const { return std::atomic_ref<std::uint32_t>(parent_[x]).load(std::memory_order_relaxed); }
+  std::vector<std::uint32_t>& parent_;
+};
+
 // What the search and every build share: the input reduced to what clustering needs.
 struct Prepared {
   explicit Prepared(const Mesh& m) : mesh(m) {}
@@ -220,6 +251,7 @@ struct Prepared {
   std::size_t triangles = 0;            // usable triangles (three distinct in-range vertices)
   std::vector<std::uint32_t> tri{};       // 3 vertex ids per usable triangle
   std::vector<std::uint32_t> tri_face{};  // its face
+  std::vector<char> used{};               // per vertex: some usable triangle has it
   std::vector<Vec3f> unit{};              // positions in the normalised box [0, 1]^3 (longest axis 1)
   std::vector<std::uint32_t> cls{};       // vertex class (kFreeClass, joint + 1, or kLockedClassBase + id)
   std::vector<char> boundary{};           // vertex on a boundary edge (1), per vertex
@@ -284,6 +316,10 @@ Prepared prepare(const Mesh& m, const SimplifyOptions& options, Parallel& parall
     p.extent = std::max({box.max[0] - box.min[0], box.max[1] - box.min[1], box.max[2] - box.min[2]});
     if (!(p.extent > 0.0)) p.extent = 1.0;
   }
+  p.used.assign(nv, 0);
+  parallel.for_ranges(p.triangles, kChunk, [&](std::size_t b, std::size_t e) {
+    for (std::size_t i = 3 * b; i < 3 * e; ++i) std::atomic_ref<char>(p.used[p.tri[i]]).store(1, std::memory_order_relaxed);
+  });
   p.unit.resize(nv);
   parallel.for_ranges(nv, 4096, [&](std::size_t b, std::size_t e) {
     for (std::size_t v = b; v < e; ++v) {
@@ -543,8 +579,7 @@ struct Clustering {
 void assign_clusters(const Prepared& p, const Grid& grid, Parallel& parallel, bool stage, Clustering& cl) {
   const double resolution = grid.resolution;
   const std::size_t nv = p.mesh.vertex_count();
-  std::vector<char> used(nv, 0);
-  for (std::uint32_t v : p.tri) used[v] = 1;
+  const std::vector<char>& used = p.used;
   std::vector<std::uint64_t>& cells = cl.cells;
   cells.resize(nv);
   parallel.for_ranges(nv, 8192, [&](std::size_t b, std::size_t e) {
@@ -552,31 +587,40 @@ void assign_clusters(const Prepared& p, const Grid& grid, Parallel& parallel, bo
   });
   std::vector<std::uint32_t>& cluster = cl.cluster;
   cluster.assign(nv, kInvalidIndex);
-  KeyTable table(std::min<std::size_t>(nv, static_cast<std::size_t>(4.0 * resolution * resolution) + 64));
   if (stage) {
     // A stage merges only vertices connected within their cell (by edges of the cell, the same class): two
-    // sheets crossing one cell stay apart instead of meeting in a non-manifold vertex.
+    // sheets crossing one cell stay apart instead of meeting in a non-manifold vertex. A cluster is such a
+    // connected piece; its root is its lowest vertex (roots link to the lower root), so numbering roots in
+    // vertex order numbers clusters in the order of their first vertex, as the table does for the others.
     std::vector<std::uint32_t> parent(nv);
-    for (std::uint32_t v = 0; v < nv; ++v) parent[v] = v;
-    auto find = [&](std::uint32_t x) {
-      while (parent[x] != x) x = parent[x] = parent[parent[x]];
-      return x;
-    };
-    for (std::size_t t = 0; t < p.triangles; ++t) {
-      for (int k = 0; k < 3; ++k) {
-        const std::uint32_t a = p.tri[3 * t + static_cast<std::size_t>(k)], b = p.tri[3 * t + static_cast<std::size_t>((k + 1) % 3)];
-        if (cells[a] != cells[b] || p.cls[a] != p.cls[b]) continue;
-        const std::uint32_t x = find(a), y = find(b);
-        if (x != y) parent[std::max(x, y)] = std::min(x, y);
+    parallel.for_ranges(nv, 1 << 14, [&](std::size_t b, std::size_t e) {
+      for (std::size_t v = b; v < e; ++v) parent[v] = static_cast<std::uint32_t>(v);
+    });
+    DisjointSets sets(parent);
+    parallel.for_ranges(p.triangles, kChunk, [&](std::size_t b, std::size_t e) {
+      for (std::size_t t = b; t < e; ++t) {
+        for (int k = 0; k < 3; ++k) {
+          const std::uint32_t a = p.tri[3 * t + static_cast<std::size_t>(k)], c = p.tri[3 * t + static_cast<std::size_t>((k + 1) % 3)];
+          if (cells[a] == cells[c] && p.cls[a] == p.cls[c]) sets.unite(a, c);
+        }
       }
-    }
-    for (std::uint32_t v = 0; v < nv; ++v) {
-      if (used[v]) cluster[v] = table.insert({cells[v], find(v)});
-    }
-  } else {
+    });
+    parallel.for_ranges(nv, 1 << 14, [&](std::size_t b, std::size_t e) {
+      for (std::size_t v = b; v < e; ++v) cluster[v] = sets.find(static_cast<std::uint32_t>(v));
+    });
+    std::uint32_t n = 0;
     for (std::size_t v = 0; v < nv; ++v) {
-      if (used[v]) cluster[v] = table.insert({cells[v], p.cls[v]});
+      if (used[v] && cluster[v] == v) parent[v] = n++;
     }
+    parallel.for_ranges(nv, 1 << 14, [&](std::size_t b, std::size_t e) {
+      for (std::size_t v = b; v < e; ++v) cluster[v] = used[v] ? parent[cluster[v]] : kInvalidIndex;
+    });
+    cl.count = n;
+    return;
+  }
+  KeyTable table(std::min<std::size_t>(nv, static_cast<std::size_t>(4.0 * resolution * resolution) + 64));
+  for (std::size_t v = 0; v < nv; ++v) {
+    if (used[v]) cluster[v] = table.insert({cells[v], p.cls[v]});
   }
   cl.count = table.size();
 }
@@ -999,16 +1043,18 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
 }
 
 // Clusters whose output vertex is not a manifold one (several fans, an edge of three or more faces, an
-// inconsistently oriented edge), judged on the kept faces with clusters as vertices.
-std::vector<std::uint8_t> irregular_clusters(const Clustering& cl, const Prepared& p) {
+// inconsistently oriented edge), judged on the kept triangles `kept` with clusters as vertices. Only clusters
+// with all their kept faces in `kept` are judged right.
+std::vector<std::uint8_t> irregular_clusters(const Clustering& cl, const Prepared& p,
+                                             const std::vector<std::uint32_t>& kept) {
   Mesh faces;
   faces.positions.resize(cl.count);
   faces.wedge_vertex.resize(cl.count);
   for (std::uint32_t c = 0; c < cl.count; ++c) faces.wedge_vertex[c] = c;
-  faces.corner_wedge.reserve(3 * cl.kept.size());
-  faces.face_offsets.reserve(cl.kept.size() + 1);
+  faces.corner_wedge.reserve(3 * kept.size());
+  faces.face_offsets.reserve(kept.size() + 1);
   faces.face_offsets.push_back(0);
-  for (std::uint32_t t : cl.kept) {
+  for (std::uint32_t t : kept) {
     for (int k = 0; k < 3; ++k) faces.corner_wedge.push_back(cl.cluster[p.tri[3 * t + static_cast<std::size_t>(k)]]);
     faces.face_offsets.push_back(static_cast<std::uint32_t>(faces.corner_wedge.size()));
   }
@@ -1019,7 +1065,8 @@ std::vector<std::uint8_t> irregular_clusters(const Clustering& cl, const Prepare
 // are set apart, each its own cluster at its own exact position (its class locked), and the faces around
 // them selected again, until no such cluster has more than one member. The clusters and faces elsewhere do
 // not change (a face's fate depends only on its own clusters), so this is the same as building the grid
-// again with those vertices locked, without the full passes. Each round sets apart at least one more vertex;
+// again with those vertices locked, without the full passes. After the first round only the clusters of the
+// faces selected again can have changed, and only their faces are checked. Each round sets apart at least one more vertex;
 // on inputs that are far from manifold themselves the rounds stop after kMaxManifoldRounds, and the engine
 // after the stage locks what is left, as it would in the input.
 Built build_stage(Prepared& p, const Grid& grid, const SimplifyOptions& options, Parallel& parallel,
@@ -1029,8 +1076,18 @@ Built build_stage(Prepared& p, const Grid& grid, const SimplifyOptions& options,
   assign_clusters(p, grid, parallel, true, cl);
   place(p, grid, options, parallel, cl);
   select_faces(p, cl, true, nullptr, cl.kept);
+  std::vector<char> suspect;  // clusters to judge (empty: all)
   for (int round = 0; round < kMaxManifoldRounds && !options.stop.requested() && !cl.kept.empty(); ++round) {
-    const std::vector<std::uint8_t> irregular = irregular_clusters(cl, p);
+    std::vector<std::uint32_t> near;  // the kept faces around the suspects
+    if (!suspect.empty()) {
+      for (std::uint32_t t : cl.kept) {
+        if (suspect[cl.cluster[p.tri[3 * t]]] || suspect[cl.cluster[p.tri[3 * t + 1]]] ||
+            suspect[cl.cluster[p.tri[3 * t + 2]]]) {
+          near.push_back(t);
+        }
+      }
+    }
+    const std::vector<std::uint8_t> irregular = irregular_clusters(cl, p, suspect.empty() ? cl.kept : near);
     std::vector<std::uint32_t> members(cl.count, 0);
     for (std::uint32_t c : cl.cluster) {
       if (c != kInvalidIndex) ++members[c];
@@ -1039,6 +1096,7 @@ Built build_stage(Prepared& p, const Grid& grid, const SimplifyOptions& options,
     for (std::size_t v = 0; v < cl.cluster.size(); ++v) {
       const std::uint32_t c = cl.cluster[v];
       if (c == kInvalidIndex || c >= first_new || !irregular[c] || members[c] < 2) continue;
+      if (!suspect.empty() && !suspect[c]) continue;
       p.cls[v] = kLockedClassBase + static_cast<std::uint32_t>(v);
       cl.cluster[v] = static_cast<std::uint32_t>(cl.count++);
       cl.any_member.push_back(static_cast<std::uint32_t>(v));
@@ -1070,6 +1128,10 @@ Built build_stage(Prepared& p, const Grid& grid, const SimplifyOptions& options,
     }
     kept.insert(kept.end(), kept_again.begin() + static_cast<std::ptrdiff_t>(j), kept_again.end());
     cl.kept = std::move(kept);
+    suspect.assign(cl.count, 0);
+    for (std::uint32_t t : again) {
+      for (int k = 0; k < 3; ++k) suspect[cl.cluster[p.tri[3 * t + static_cast<std::size_t>(k)]]] = 1;
+    }
   }
   return emit(p, options, parallel, cl, true);
 }
