@@ -84,19 +84,39 @@ std::vector<std::uint8_t> several_fans(const Mesh& mesh, UnionFind& fans) {
 Topology build_topology(const Mesh& mesh) {
   Topology t;
   const std::size_t nc = mesh.corner_count();
-  // (min vertex, max vertex) packed into 64 bits, with the corner: sort groups the sides of each edge.
+  // (min vertex, max vertex) packed into 64 bits, with the corner, in (key, corner) order: that groups the
+  // sides of each edge. A counting pass by the lower vertex (corners stay in order within each) and a sort
+  // of each vertex's few sides give that order in linear time; ids far beyond the positions (a mesh not yet
+  // validated) take a plain sort.
   std::vector<std::pair<std::uint64_t, std::uint32_t>> sides;
   sides.reserve(nc);
   t.corner_edge.assign(nc, kInvalidIndex);
+  std::uint32_t highest = 0;
   for (std::uint32_t f = 0; f < mesh.face_count(); ++f) {
     for (std::uint32_t c = mesh.face_offsets[f]; c < mesh.face_offsets[f + 1]; ++c) {
       const std::uint32_t a = mesh.corner_vertex(c), b = mesh.corner_vertex(next_corner(mesh, f, c));
       if (a == b) continue;
-      const std::uint64_t key = (std::uint64_t{std::min(a, b)} << 32) | std::max(a, b);
-      sides.emplace_back(key, c);
+      const std::uint32_t lo = std::min(a, b);
+      highest = std::max(highest, lo);
+      sides.emplace_back((std::uint64_t{lo} << 32) | std::max(a, b), c);
     }
   }
-  std::sort(sides.begin(), sides.end());
+  if (highest > mesh.vertex_count() + nc) {
+    std::sort(sides.begin(), sides.end());
+  } else {
+    std::vector<std::uint32_t> end(std::size_t{highest} + 2, 0);
+    for (const auto& side : sides) ++end[(side.first >> 32) + 1];
+    for (std::size_t v = 1; v < end.size(); ++v) end[v] += end[v - 1];
+    std::vector<std::pair<std::uint64_t, std::uint32_t>> sorted(sides.size());
+    for (const auto& side : sides) sorted[end[side.first >> 32]++] = side;  // end[v]: now the end of v's sides
+    for (std::size_t v = 0, begin = 0; v + 1 < end.size(); ++v) {
+      if (end[v] - begin > 1) {
+        std::sort(sorted.begin() + static_cast<std::ptrdiff_t>(begin), sorted.begin() + static_cast<std::ptrdiff_t>(end[v]));
+      }
+      begin = end[v];
+    }
+    sides = std::move(sorted);
+  }
   t.edge_corner.reserve(sides.size());
   t.edge_corner_offsets.reserve(sides.size() / 2 + 2);
   for (std::size_t i = 0; i < sides.size();) {
