@@ -249,8 +249,9 @@ struct Prepared {
   explicit Prepared(const Mesh& m) : mesh(m) {}
   const Mesh& mesh;
   std::size_t triangles = 0;            // usable triangles (three distinct in-range vertices)
-  std::vector<std::uint32_t> tri{};       // 3 vertex ids per usable triangle
-  std::vector<std::uint32_t> tri_face{};  // its face
+  // Filled by parallel passes, so not zeroed first.
+  std::vector<std::uint32_t, UnconstructedAllocator<std::uint32_t>> tri{};       // 3 vertex ids per usable triangle
+  std::vector<std::uint32_t, UnconstructedAllocator<std::uint32_t>> tri_face{};  // its face
   std::vector<char> used{};               // per vertex: some usable triangle has it
   std::vector<Vec3f> unit{};              // positions in the normalised box [0, 1]^3 (longest axis 1)
   std::vector<std::uint32_t> cls{};       // vertex class (kFreeClass, joint + 1, or kLockedClassBase + id)
@@ -295,21 +296,50 @@ Prepared prepare(const Mesh& m, const SimplifyOptions& options, Parallel& parall
     }
   }
   // Triangles with three distinct vertices in range; the rest carry no surface.
-  p.tri.reserve(3 * nf);
-  p.tri_face.reserve(nf);
-  for (std::uint32_t f = 0; f < nf; ++f) {
-    if (m.face_size(f) != 3 || !face_indices_in_range(m, f)) continue;
+  // Counted per fixed chunk of faces, then written in place.
+  auto usable = [&](std::uint32_t f) {
+    if (m.face_size(f) != 3 || !face_indices_in_range(m, f)) return false;
     const std::uint32_t c = m.face_offsets[f];
     const std::uint32_t a = m.corner_vertex(c), b = m.corner_vertex(c + 1), d = m.corner_vertex(c + 2);
-    if (a == b || b == d || a == d) continue;
-    p.tri.insert(p.tri.end(), {a, b, d});
-    p.tri_face.push_back(f);
-  }
-  p.triangles = p.tri_face.size();
+    return a != b && b != d && a != d;
+  };
+  std::vector<std::size_t> chunk_start((nf + kChunk - 1) / kChunk + 1, 0);
+  parallel.for_ranges(chunk_start.size() - 1, 1, [&](std::size_t cb, std::size_t ce) {
+    for (std::size_t k = cb; k < ce; ++k) {
+      std::size_t n = 0;
+      for (std::size_t f = k * kChunk, end = std::min(nf, (k + 1) * kChunk); f < end; ++f) n += usable(static_cast<std::uint32_t>(f));
+      chunk_start[k + 1] = n;
+    }
+  });
+  for (std::size_t k = 1; k < chunk_start.size(); ++k) chunk_start[k] += chunk_start[k - 1];
+  p.triangles = chunk_start.back();
+  p.tri.resize(3 * p.triangles);
+  p.tri_face.resize(p.triangles);
+  parallel.for_ranges(chunk_start.size() - 1, 1, [&](std::size_t cb, std::size_t ce) {
+    for (std::size_t k = cb; k < ce; ++k) {
+      std::size_t i = chunk_start[k];
+      for (std::size_t f = k * kChunk, end = std::min(nf, (k + 1) * kChunk); f < end; ++f) {
+        const auto face = static_cast<std::uint32_t>(f);
+        if (!usable(face)) continue;
+        const std::uint32_t c = m.face_offsets[face];
+        p.tri[3 * i] = m.corner_vertex(c), p.tri[3 * i + 1] = m.corner_vertex(c + 1), p.tri[3 * i + 2] = m.corner_vertex(c + 2);
+        p.tri_face[i++] = face;
+      }
+    }
+  });
 
+  // Bounds per fixed chunk, then combined (minima and maxima are exact in any order).
+  std::vector<Bounds3> boxes((nv + kChunk - 1) / kChunk);
+  parallel.for_ranges(boxes.size(), 1, [&](std::size_t cb, std::size_t ce) {
+    for (std::size_t k = cb; k < ce; ++k) {
+      for (std::size_t v = k * kChunk, end = std::min(nv, (k + 1) * kChunk); v < end; ++v) {
+        if (finite(m.positions[v])) boxes[k].add(to_double(m.positions[v]));
+      }
+    }
+  });
   Bounds3 box;
-  for (const Vec3f& q : m.positions) {
-    if (finite(q)) box.add(to_double(q));
+  for (const Bounds3& b : boxes) {
+    if (!b.empty()) box.add(b.min), box.add(b.max);
   }
   if (!box.empty()) {
     p.origin = box.min;
@@ -738,44 +768,58 @@ void place(const Prepared& p, const Grid& grid, const SimplifyOptions& options, 
 // cyclic order, same material); in a stage, no back-to-back pair either. `triangles` lists the candidates in
 // order (all triangles where empty); the kept ones are appended to `kept`.
 void select_faces(const Prepared& p, const Clustering& cl, bool stage, const std::vector<std::uint32_t>* triangles,
-                  std::vector<std::uint32_t>& kept) {
+                  Parallel& parallel, std::vector<std::uint32_t>& kept) {
   const Mesh& m = p.mesh;
   const std::vector<std::uint32_t>& cluster = cl.cluster;
   const std::vector<Vec3f>& model = cl.model;
   const std::size_t candidates = triangles != nullptr ? triangles->size() : p.triangles;
   const std::size_t first = kept.size();
-  {
-    FaceSet seen(std::min(candidates, 4 * cl.count + 64));
-    for (std::size_t i = 0; i < candidates; ++i) {
-      const std::size_t t = triangles != nullptr ? (*triangles)[i] : i;
-      std::uint32_t c0 = cluster[p.tri[3 * t]], c1 = cluster[p.tri[3 * t + 1]], c2 = cluster[p.tri[3 * t + 2]];
-      if (c0 == c1 || c1 == c2 || c0 == c2) continue;
-      const Vec3d a = to_double(model[c0]);
-      const Vec3d n = cross(to_double(model[c1]) - a, to_double(model[c2]) - a);
-      if (!(dot(n, n) > 0.0)) continue;
-      // Canonical rotation: the smallest cluster first, the winding kept.
-      while (c0 > c1 || c0 > c2) {
-        const std::uint32_t s = c0;
-        c0 = c1, c1 = c2, c2 = s;
+  // Corners in three clusters and a non-zero area, per fixed chunk in parallel; then the repeats, in order.
+  std::vector<std::vector<std::uint32_t>> passing((candidates + kChunk - 1) / kChunk);
+  parallel.for_ranges(passing.size(), 1, [&](std::size_t cb, std::size_t ce) {
+    for (std::size_t chunk = cb; chunk < ce; ++chunk) {
+      const std::size_t end = std::min(candidates, (chunk + 1) * kChunk);
+      for (std::size_t i = chunk * kChunk; i < end; ++i) {
+        const std::size_t t = triangles != nullptr ? (*triangles)[i] : i;
+        const std::uint32_t c0 = cluster[p.tri[3 * t]], c1 = cluster[p.tri[3 * t + 1]], c2 = cluster[p.tri[3 * t + 2]];
+        if (c0 == c1 || c1 == c2 || c0 == c2) continue;
+        const Vec3d a = to_double(model[c0]);
+        const Vec3d n = cross(to_double(model[c1]) - a, to_double(model[c2]) - a);
+        if (dot(n, n) > 0.0) passing[chunk].push_back(static_cast<std::uint32_t>(t));
       }
-      if (!seen.insert(FaceKey{c0, c1, c2, material_of(m, p.tri_face[t])})) continue;
-      kept.push_back(static_cast<std::uint32_t>(t));
     }
-    if (stage) {
-      // A face whose reverse was kept too is one of a back-to-back pair (a fold or a thin part within a
-      // cell): both go, as their shared edges would be non-manifold and lock their vertices in a later engine.
-      std::size_t n = first;
-      for (std::size_t i = first; i < kept.size(); ++i) {
-        const std::uint32_t t = kept[i];
-        std::uint32_t c0 = cluster[p.tri[3 * t]], c1 = cluster[p.tri[3 * t + 2]], c2 = cluster[p.tri[3 * t + 1]];
-        while (c0 > c1 || c0 > c2) {
-          const std::uint32_t x = c0;
-          c0 = c1, c1 = c2, c2 = x;
-        }
-        if (!seen.contains(FaceKey{c0, c1, c2, material_of(m, p.tri_face[t])})) kept[n++] = t;
-      }
-      kept.resize(n);
+  });
+  std::size_t survivors = 0;
+  for (const auto& list : passing) survivors += list.size();
+  // Canonical rotation: the smallest cluster first, the winding kept (`flip`: the reverse face's key).
+  auto key_of = [&](std::uint32_t t, bool flip) {
+    std::uint32_t c0 = cluster[p.tri[3 * t]], c1 = cluster[p.tri[3 * t + (flip ? 2 : 1)]],
+                  c2 = cluster[p.tri[3 * t + (flip ? 1 : 2)]];
+    while (c0 > c1 || c0 > c2) {
+      const std::uint32_t x = c0;
+      c0 = c1, c1 = c2, c2 = x;
     }
+    return FaceKey{c0, c1, c2, material_of(m, p.tri_face[t])};
+  };
+  FaceSet seen(survivors);
+  kept.reserve(first + survivors);
+  for (const auto& list : passing) {
+    for (std::uint32_t t : list) {
+      if (seen.insert(key_of(t, false))) kept.push_back(t);
+    }
+  }
+  if (stage) {
+    // A face whose reverse was kept too is one of a back-to-back pair (a fold or a thin part within a cell):
+    // both go, as their shared edges would be non-manifold and lock their vertices in a later engine.
+    std::vector<char> pair(kept.size() - first, 0);
+    parallel.for_ranges(pair.size(), 1 << 14, [&](std::size_t b, std::size_t e) {
+      for (std::size_t i = b; i < e; ++i) pair[i] = seen.contains(key_of(kept[first + i], true));
+    });
+    std::size_t n = first;
+    for (std::size_t i = first; i < kept.size(); ++i) {
+      if (!pair[i - first]) kept[n++] = kept[i];
+    }
+    kept.resize(n);
   }
 }
 
@@ -1038,7 +1082,7 @@ Built build(const Prepared& p, const Grid& grid, const SimplifyOptions& options,
   Clustering cl;
   assign_clusters(p, grid, parallel, false, cl);
   place(p, grid, options, parallel, cl);
-  select_faces(p, cl, false, nullptr, cl.kept);
+  select_faces(p, cl, false, nullptr, parallel, cl.kept);
   return emit(p, options, parallel, cl, false);
 }
 
@@ -1058,7 +1102,8 @@ std::vector<std::uint8_t> irregular_clusters(const Clustering& cl, const Prepare
     for (int k = 0; k < 3; ++k) faces.corner_wedge.push_back(cl.cluster[p.tri[3 * t + static_cast<std::size_t>(k)]]);
     faces.face_offsets.push_back(static_cast<std::uint32_t>(faces.corner_wedge.size()));
   }
-  return irregular_vertices(faces, build_topology(faces));
+  const Topology topo = build_topology(faces);
+  return irregular_vertices(faces, topo);
 }
 
 // A stage's build, made a manifold where the input is one: the members of every cluster whose vertex is not
@@ -1075,7 +1120,7 @@ Built build_stage(Prepared& p, const Grid& grid, const SimplifyOptions& options,
   Clustering cl;
   assign_clusters(p, grid, parallel, true, cl);
   place(p, grid, options, parallel, cl);
-  select_faces(p, cl, true, nullptr, cl.kept);
+  select_faces(p, cl, true, nullptr, parallel, cl.kept);
   std::vector<char> suspect;  // clusters to judge (empty: all)
   for (int round = 0; round < kMaxManifoldRounds && !options.stop.requested() && !cl.kept.empty(); ++round) {
     std::vector<std::uint32_t> near;  // the kept faces around the suspects
@@ -1117,7 +1162,7 @@ Built build_stage(Prepared& p, const Grid& grid, const SimplifyOptions& options,
     for (std::size_t t = 0; t < p.triangles; ++t) {
       if (touched(t)) again.push_back(static_cast<std::uint32_t>(t));
     }
-    select_faces(p, cl, true, &again, kept_again);
+    select_faces(p, cl, true, &again, parallel, kept_again);
     std::vector<std::uint32_t> kept;
     kept.reserve(cl.kept.size() + kept_again.size());
     std::size_t j = 0;
