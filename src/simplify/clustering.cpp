@@ -765,7 +765,8 @@ void place(const Prepared& p, const Grid& grid, const SimplifyOptions& options, 
 }
 
 // Faces: corners in three clusters, no zero area, no repeat of an earlier face (same clusters in the same
-// cyclic order, same material); in a stage, no back-to-back pair either. `triangles` lists the candidates in
+// cyclic order, same material); in a stage, no back-to-back pair either. Before placement (no `model` yet)
+// the area is not tested. `triangles` lists the candidates in
 // order (all triangles where empty); the kept ones are appended to `kept`.
 void select_faces(const Prepared& p, const Clustering& cl, bool stage, const std::vector<std::uint32_t>* triangles,
                   Parallel& parallel, std::vector<std::uint32_t>& kept) {
@@ -783,9 +784,12 @@ void select_faces(const Prepared& p, const Clustering& cl, bool stage, const std
         const std::size_t t = triangles != nullptr ? (*triangles)[i] : i;
         const std::uint32_t c0 = cluster[p.tri[3 * t]], c1 = cluster[p.tri[3 * t + 1]], c2 = cluster[p.tri[3 * t + 2]];
         if (c0 == c1 || c1 == c2 || c0 == c2) continue;
-        const Vec3d a = to_double(model[c0]);
-        const Vec3d n = cross(to_double(model[c1]) - a, to_double(model[c2]) - a);
-        if (dot(n, n) > 0.0) passing[chunk].push_back(static_cast<std::uint32_t>(t));
+        if (!model.empty()) {
+          const Vec3d a = to_double(model[c0]);
+          const Vec3d n = cross(to_double(model[c1]) - a, to_double(model[c2]) - a);
+          if (!(dot(n, n) > 0.0)) continue;
+        }
+        passing[chunk].push_back(static_cast<std::uint32_t>(t));
       }
     }
   });
@@ -1238,22 +1242,38 @@ SimplifyResult run_cluster(const Mesh& mesh, const SimplifyOptions& options, boo
     double aim = static_cast<double>(target);
     // A first guess from a surface's count ~ 2 × cells: a unit square gives resolution² cells.
     double start = std::sqrt(aim / (kTrianglesPerArea * std::max(p.area, 1e-12)));
-    // A stage's count only has to be near its aim: no correction build.
-    for (int round = 0; round <= (stage ? 0 : kMaxCorrections); ++round) {
-      const Probe found = search_grid(p, static_cast<std::size_t>(aim), start, parallel, probes, options.stop);
-      const std::size_t raw = found.count;
-      Built b = stage ? build_stage(p, found.grid, options, parallel, probes) : build(p, found.grid, options, parallel);
-        const bool better = b.triangles <= target && (round == 0 || b.triangles > best.triangles);
-      if (round == 0 || better) {
-        grid = found.grid;
-        best = std::move(b);
+    if (stage) {  // a stage's count only has to be near its aim: no correction
+      const Probe found = search_grid(p, target, start, parallel, probes, options.stop);
+      grid = found.grid;
+      best = build_stage(p, grid, options, parallel, probes);
+    } else {
+      // The correction decides on the faces a grid keeps before placement (the zero-area faces it drops
+      // after are rare), so only the chosen grid is placed and built.
+      std::optional<Clustering> chosen;
+      std::size_t chosen_count = 0;
+      for (int round = 0; round <= kMaxCorrections; ++round) {
+        const Probe found = search_grid(p, static_cast<std::size_t>(aim), start, parallel, probes, options.stop);
+        const std::size_t raw = found.count;
+        Clustering cl;
+        assign_clusters(p, found.grid, parallel, false, cl);
+        select_faces(p, cl, false, nullptr, parallel, cl.kept);
+        const std::size_t n = cl.kept.size();
+        if (round == 0 || (n <= target && n > chosen_count)) {
+          grid = found.grid;
+          chosen = std::move(cl);
+          chosen_count = n;
+        }
+        if (options.stop.requested() || raw == 0 || chosen_count == 0) break;
+        if (static_cast<double>(target - chosen_count) <= kBuildTolerance * static_cast<double>(target)) break;
+        const double next = aim * static_cast<double>(raw) / static_cast<double>(std::max<std::size_t>(1, n));
+        if (!(next > aim * (1.0 + kCountTolerance))) break;
+        start = found.grid.resolution * std::sqrt(next / aim);
+        aim = std::min(next, static_cast<double>(p.triangles));
       }
-      if (options.stop.requested() || raw == 0 || best.triangles == 0) break;
-      if (static_cast<double>(target - best.triangles) <= kBuildTolerance * static_cast<double>(target)) break;
-      const double next = aim * static_cast<double>(raw) / static_cast<double>(std::max<std::size_t>(1, b.triangles));
-      if (!(next > aim * (1.0 + kCountTolerance))) break;
-      start = found.grid.resolution * std::sqrt(next / aim);
-      aim = std::min(next, static_cast<double>(p.triangles));
+      chosen->kept.clear();
+      place(p, grid, options, parallel, *chosen);
+      select_faces(p, *chosen, false, nullptr, parallel, chosen->kept);
+      best = emit(p, options, parallel, *chosen, false);
     }
   }
   if (options.stop.requested() && best.triangles == 0) {  // stopped before any LOD was built: the input
