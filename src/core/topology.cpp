@@ -3,25 +3,10 @@
 #include <algorithm>
 #include <numeric>
 
+#include "lodforge/core/union_find.hpp"
+
 namespace lodforge {
 namespace {
-
-struct UnionFind {
-  std::vector<std::uint32_t> parent;
-  explicit UnionFind(std::size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
-  std::uint32_t find(std::uint32_t x) {
-    while (parent[x] != x) {
-      parent[x] = parent[parent[x]];
-      x = parent[x];
-    }
-    return x;
-  }
-  void unite(std::uint32_t a, std::uint32_t b) {
-    a = find(a);
-    b = find(b);
-    if (a != b) parent[std::max(a, b)] = std::min(a, b);  // smaller id wins: deterministic roots
-  }
-};
 
 // Corner of face f that follows corner c (cyclically).
 inline std::uint32_t next_corner(const Mesh& m, std::uint32_t f, std::uint32_t c) {

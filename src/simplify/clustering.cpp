@@ -41,6 +41,7 @@
 
 #include "engines.hpp"
 #include "lodforge/core/topology.hpp"
+#include "lodforge/core/union_find.hpp"
 
 namespace lodforge::collapse {
 namespace {
@@ -212,36 +213,6 @@ class FaceSet {
   }
   std::vector<Slot> slots_;
   std::size_t size_ = 0;
-};
-
-// Union-find over vertex ids shared by threads: a root links only to a lower root (by compare-and-swap), so
-// every parent is at most its child and the root of a set is its lowest member, whatever the order of the
-// unions. Finds halve paths as they go (any ancestor is a valid parent).
-class DisjointSets {
- public:
-  explicit DisjointSets(std::vector<std::uint32_t>& parent) : parent_(parent) {}
-  std::uint32_t find(std::uint32_t x) const {
-    for (;;) {
-      const std::uint32_t up = load(x);
-      if (up == x) return x;
-      const std::uint32_t above = load(up);
-      if (above != up) std::atomic_ref<std::uint32_t>(parent_[x]).store(above, std::memory_order_relaxed);
-      x = above;
-    }
-  }
-  void unite(std::uint32_t a, std::uint32_t b) const {
-    for (;;) {
-      a = find(a), b = find(b);
-      if (a == b) return;
-      if (a < b) std::swap(a, b);
-      std::uint32_t expected = a;  // still a root?
-      if (std::atomic_ref<std::uint32_t>(parent_[a]).compare_exchange_strong(expected, b, std::memory_order_relaxed)) return;
-    }
-  }
-
- private:
-  std::uint32_t load(std::uint32_t x) const { return std::atomic_ref<std::uint32_t>(parent_[x]).load(std::memory_order_relaxed); }
-  std::vector<std::uint32_t>& parent_;
 };
 
 // What the search and every build share: the input reduced to what clustering needs.
@@ -622,28 +593,25 @@ void assign_clusters(const Prepared& p, const Grid& grid, Parallel& parallel, bo
     // sheets crossing one cell stay apart instead of meeting in a non-manifold vertex. A cluster is such a
     // connected piece; its root is its lowest vertex (roots link to the lower root), so numbering roots in
     // vertex order numbers clusters in the order of their first vertex, as the table does for the others.
-    std::vector<std::uint32_t> parent(nv);
-    parallel.for_ranges(nv, 1 << 14, [&](std::size_t b, std::size_t e) {
-      for (std::size_t v = b; v < e; ++v) parent[v] = static_cast<std::uint32_t>(v);
-    });
-    DisjointSets sets(parent);
+    UnionFind sets(nv);
     parallel.for_ranges(p.triangles, kChunk, [&](std::size_t b, std::size_t e) {
       for (std::size_t t = b; t < e; ++t) {
         for (int k = 0; k < 3; ++k) {
           const std::uint32_t a = p.tri[3 * t + static_cast<std::size_t>(k)], c = p.tri[3 * t + static_cast<std::size_t>((k + 1) % 3)];
-          if (cells[a] == cells[c] && p.cls[a] == p.cls[c]) sets.unite(a, c);
+          if (cells[a] == cells[c] && p.cls[a] == p.cls[c]) sets.unite_shared(a, c);
         }
       }
     });
     parallel.for_ranges(nv, 1 << 14, [&](std::size_t b, std::size_t e) {
-      for (std::size_t v = b; v < e; ++v) cluster[v] = sets.find(static_cast<std::uint32_t>(v));
+      for (std::size_t v = b; v < e; ++v) cluster[v] = sets.find_shared(static_cast<std::uint32_t>(v));
     });
+    std::vector<std::uint32_t> id(nv);  // per root: its cluster
     std::uint32_t n = 0;
     for (std::size_t v = 0; v < nv; ++v) {
-      if (used[v] && cluster[v] == v) parent[v] = n++;
+      if (used[v] && cluster[v] == v) id[v] = n++;
     }
     parallel.for_ranges(nv, 1 << 14, [&](std::size_t b, std::size_t e) {
-      for (std::size_t v = b; v < e; ++v) cluster[v] = used[v] ? parent[cluster[v]] : kInvalidIndex;
+      for (std::size_t v = b; v < e; ++v) cluster[v] = used[v] ? id[cluster[v]] : kInvalidIndex;
     });
     cl.count = n;
     return;
@@ -856,21 +824,14 @@ Built emit(const Prepared& p, const SimplifyOptions& options, Parallel& parallel
     classes.resize(nc);
     for (std::uint32_t c = 0; c < nc; ++c) classes[c].cluster = c;
   } else {
-    std::vector<std::uint32_t> parent;
-    auto find = [&](std::uint32_t x) {
-      while (parent[x] != x) x = parent[x] = parent[parent[x]];
-      return x;
-    };
+    UnionFind pieces(p.has_attributes ? nw : 0);
     if (p.has_attributes) {
-      parent.resize(nw);
-      for (std::uint32_t w = 0; w < nw; ++w) parent[w] = w;
       for (std::size_t t = 0; t < p.triangles; ++t) {
         const std::uint32_t f = p.tri_face[t], c = m.face_offsets[f];
         for (int k = 0; k < 3; ++k) {
           const std::uint32_t i = c + static_cast<std::uint32_t>(k), j = c + static_cast<std::uint32_t>((k + 1) % 3);
           if (cluster[m.corner_vertex(i)] != cluster[m.corner_vertex(j)]) continue;
-          const std::uint32_t x = find(m.corner_wedge[i]), y = find(m.corner_wedge[j]);
-          if (x != y) parent[std::max(x, y)] = std::min(x, y);
+          pieces.unite(m.corner_wedge[i], m.corner_wedge[j]);
         }
       }
     }
@@ -883,7 +844,7 @@ Built emit(const Prepared& p, const SimplifyOptions& options, Parallel& parallel
       for (std::uint32_t k = 0; k < 3; ++k) {
         const std::uint32_t w = m.corner_wedge[c + k];
         const std::uint32_t v = m.wedge_vertex[w];
-        const std::uint32_t id = p.has_attributes ? find(w) : cluster[v];
+        const std::uint32_t id = p.has_attributes ? pieces.find(w) : cluster[v];
         std::uint32_t cls;
         if (first_class[id] == kInvalidIndex) {
           cls = first_class[id] = static_cast<std::uint32_t>(classes.size());
