@@ -734,8 +734,8 @@ void place(const Prepared& p, const Grid& grid, const SimplifyOptions& options, 
 
 // Faces: corners in three clusters, no zero area, no repeat of an earlier face (same clusters in the same
 // cyclic order, same material); in a stage, no back-to-back pair either. Before placement (no `model` yet)
-// the area is not tested. `triangles` lists the candidates in
-// order (all triangles where empty); the kept ones are appended to `kept`.
+// the area is not tested. `triangles` lists the candidates in order (all triangles where null); the kept
+// ones are appended to `kept`.
 void select_faces(const Prepared& p, const Clustering& cl, bool stage, const std::vector<std::uint32_t>* triangles,
                   Parallel& parallel, std::vector<std::uint32_t>& kept) {
   const Mesh& m = p.mesh;
@@ -1076,9 +1076,9 @@ std::vector<std::uint8_t> irregular_clusters(const Clustering& cl, const Prepare
 // them selected again, until no such cluster has more than one member. The clusters and faces elsewhere do
 // not change (a face's fate depends only on its own clusters), so this is the same as building the grid
 // again with those vertices locked, without the full passes. After the first round only the clusters of the
-// faces selected again can have changed, and only their faces are checked. Each round sets apart at least one more vertex;
-// on inputs that are far from manifold themselves the rounds stop after kMaxManifoldRounds, and the engine
-// after the stage locks what is left, as it would in the input.
+// faces selected again can have changed, and only their faces are checked. Each round sets apart at least one
+// more vertex; on inputs that are far from manifold themselves the rounds stop after kMaxManifoldRounds, and
+// the engine after the stage locks what is left, as it would in the input.
 Built build_stage(Prepared& p, const Grid& grid, const SimplifyOptions& options, Parallel& parallel,
                   std::size_t& rounds) {
   const Mesh& m = p.mesh;
