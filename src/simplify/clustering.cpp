@@ -230,6 +230,7 @@ struct Prepared {
   std::vector<std::pair<std::uint32_t, std::uint32_t>> boundary_edges{};  // (triangle, corner): edge corner→next
   Vec3d origin{};                       // model position of the normalised origin
   double extent = 1.0;                  // model length of the normalised unit
+  double diagonal = 0.0;                // of the finite positions' bounding box, model units
   bool has_attributes = false;
   bool single_material = true;
   bool any_class = false;  // some vertex has a class other than kFreeClass
@@ -267,7 +268,7 @@ Prepared prepare(const Mesh& m, const SimplifyOptions& options, Parallel& parall
     }
   }
   // Triangles with three distinct vertices in range; the rest carry no surface.
-  // Counted per fixed chunk of faces, then written in place.
+  // Tested and counted per fixed chunk of faces, then written in place.
   auto usable = [&](std::uint32_t f) {
     if (m.face_size(f) != 3 || !face_indices_in_range(m, f)) return false;
     const std::uint32_t c = m.face_offsets[f];
@@ -275,10 +276,14 @@ Prepared prepare(const Mesh& m, const SimplifyOptions& options, Parallel& parall
     return a != b && b != d && a != d;
   };
   std::vector<std::size_t> chunk_start((nf + kChunk - 1) / kChunk + 1, 0);
+  std::vector<char> ok(nf);
   parallel.for_ranges(chunk_start.size() - 1, 1, [&](std::size_t cb, std::size_t ce) {
     for (std::size_t k = cb; k < ce; ++k) {
       std::size_t n = 0;
-      for (std::size_t f = k * kChunk, end = std::min(nf, (k + 1) * kChunk); f < end; ++f) n += usable(static_cast<std::uint32_t>(f));
+      for (std::size_t f = k * kChunk, end = std::min(nf, (k + 1) * kChunk); f < end; ++f) {
+        ok[f] = usable(static_cast<std::uint32_t>(f));
+        n += ok[f];
+      }
       chunk_start[k + 1] = n;
     }
   });
@@ -291,7 +296,7 @@ Prepared prepare(const Mesh& m, const SimplifyOptions& options, Parallel& parall
       std::size_t i = chunk_start[k];
       for (std::size_t f = k * kChunk, end = std::min(nf, (k + 1) * kChunk); f < end; ++f) {
         const auto face = static_cast<std::uint32_t>(f);
-        if (!usable(face)) continue;
+        if (!ok[f]) continue;
         const std::uint32_t c = m.face_offsets[face];
         p.tri[3 * i] = m.corner_vertex(c), p.tri[3 * i + 1] = m.corner_vertex(c + 1), p.tri[3 * i + 2] = m.corner_vertex(c + 2);
         p.tri_face[i++] = face;
@@ -317,6 +322,7 @@ Prepared prepare(const Mesh& m, const SimplifyOptions& options, Parallel& parall
     p.extent = std::max({box.max[0] - box.min[0], box.max[1] - box.min[1], box.max[2] - box.min[2]});
     if (!(p.extent > 0.0)) p.extent = 1.0;
   }
+  p.diagonal = box.diagonal();
   p.used.assign(nv, 0);
   parallel.for_ranges(p.triangles, kChunk, [&](std::size_t b, std::size_t e) {
     for (std::size_t i = 3 * b; i < 3 * e; ++i) std::atomic_ref<char>(p.used[p.tri[i]]).store(1, std::memory_order_relaxed);
@@ -1165,7 +1171,7 @@ SimplifyResult run_cluster(const Mesh& mesh, const SimplifyOptions& options, boo
   const Mesh& tris = kinds.quads != 0 || kinds.polygons != 0 ? triangulated_copy : mesh;
   Parallel parallel(options.threads);
   Prepared p = prepare(tris, options, parallel);
-  const double diagonal = compute_bounds(tris).diagonal();
+  const double diagonal = p.diagonal;
   const StopRule stop = stop_rule(options, tris.triangle_count(), diagonal);
   const std::size_t target = stop.target_triangles;
   const double setup_ms = elapsed_ms(t0);
